@@ -1,0 +1,121 @@
+// Small value types and the local shading frame used by every model.
+//
+// Conventions (one place, read once):
+//  * Directions are unit vectors in a local frame where the surface normal is +z
+//    and the tangent (for anisotropic models) is +x.
+//  * wo points towards the viewer, wi towards the light; both leave the surface.
+//  * Brdf::f(wo, wi) returns the BRDF in 1/sr and EXCLUDES cos(theta_i).
+//  * POV-Ray has no 1/pi: its light colour acts as irradiance at normal incidence
+//    and its pixel values are pi x radiance. The one place that applies that
+//    factor is pov_weight() in brdf.h.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+namespace shading {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInvPi = 1.0 / kPi;
+
+struct Vec3 {
+    double x = 0, y = 0, z = 0;
+    constexpr Vec3() = default;
+    constexpr Vec3(double x_, double y_, double z_) : x(x_), y(y_), z(z_) {}
+    constexpr Vec3 operator+(const Vec3& o) const { return {x + o.x, y + o.y, z + o.z}; }
+    constexpr Vec3 operator-(const Vec3& o) const { return {x - o.x, y - o.y, z - o.z}; }
+    constexpr Vec3 operator-() const { return {-x, -y, -z}; }
+    constexpr Vec3 operator*(double s) const { return {x * s, y * s, z * s}; }
+};
+
+constexpr double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline double length(const Vec3& v) { return std::sqrt(dot(v, v)); }
+// Zero vector stays zero (callers test for it) instead of becoming NaN.
+inline Vec3 normalize(const Vec3& v) {
+    double l = length(v);
+    return l > 0 ? v * (1.0 / l) : v;
+}
+
+// Linear RGB triple (reflectance, BRDF value or radiance, by context).
+struct Rgb {
+    double r = 0, g = 0, b = 0;
+    constexpr Rgb() = default;
+    constexpr explicit Rgb(double v) : r(v), g(v), b(v) {}
+    constexpr Rgb(double r_, double g_, double b_) : r(r_), g(g_), b(b_) {}
+    constexpr Rgb operator+(const Rgb& o) const { return {r + o.r, g + o.g, b + o.b}; }
+    constexpr Rgb operator-(const Rgb& o) const { return {r - o.r, g - o.g, b - o.b}; }
+    constexpr Rgb operator*(const Rgb& o) const { return {r * o.r, g * o.g, b * o.b}; }
+    constexpr Rgb operator*(double s) const { return {r * s, g * s, b * s}; }
+    constexpr Rgb operator/(double s) const { return {r / s, g / s, b / s}; }
+    Rgb& operator+=(const Rgb& o) { r += o.r; g += o.g; b += o.b; return *this; }
+    constexpr double operator[](int i) const { return i == 0 ? r : (i == 1 ? g : b); }
+    double& operator[](int i) { return i == 0 ? r : (i == 1 ? g : b); }
+    constexpr double max_component() const { return std::max(r, std::max(g, b)); }
+    constexpr double average() const { return (r + g + b) / 3.0; }
+};
+constexpr Rgb operator*(double s, const Rgb& c) { return c * s; }
+
+// Numerically safe helpers: every clamp below guards against rounding that
+// pushes an argument a few ulps outside the function's domain.
+inline double safe_sqrt(double x) { return std::sqrt(std::max(0.0, x)); }
+inline double safe_acos(double x) { return std::acos(std::clamp(x, -1.0, 1.0)); }
+inline double safe_asin(double x) { return std::asin(std::clamp(x, -1.0, 1.0)); }
+inline double sqr(double x) { return x * x; }
+
+// Local-frame trigonometry (normal = +z, tangent = +x).
+inline double cos_theta(const Vec3& w) { return w.z; }
+inline double cos2_theta(const Vec3& w) { return w.z * w.z; }
+inline double sin2_theta(const Vec3& w) { return std::max(0.0, 1.0 - cos2_theta(w)); }
+inline double sin_theta(const Vec3& w) { return std::sqrt(sin2_theta(w)); }
+inline double tan2_theta(const Vec3& w) { return sin2_theta(w) / cos2_theta(w); }
+// At the pole phi is undefined; return phi = 0 (cos 1, sin 0) so callers stay finite.
+inline double cos_phi(const Vec3& w) {
+    double s = sin_theta(w);
+    return s == 0 ? 1.0 : std::clamp(w.x / s, -1.0, 1.0);
+}
+inline double sin_phi(const Vec3& w) {
+    double s = sin_theta(w);
+    return s == 0 ? 0.0 : std::clamp(w.y / s, -1.0, 1.0);
+}
+// Direction from spherical angles in the local frame.
+inline Vec3 spherical_direction(double theta, double phi) {
+    double s = std::sin(theta);
+    return {s * std::cos(phi), s * std::sin(phi), std::cos(theta)};
+}
+
+// Orthonormal frame (t, b, n); to_local/to_world are the only world<->local conversions.
+struct Frame {
+    Vec3 t{1, 0, 0}, b{0, 1, 0}, n{0, 0, 1};
+    // Frame from a unit normal alone: a branch-free orthonormal basis
+    // (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
+    static Frame from_normal(const Vec3& n) {
+        double sign = std::copysign(1.0, n.z);
+        double a = -1.0 / (sign + n.z);
+        double bb = n.x * n.y * a;
+        Frame f;
+        f.t = {1.0 + sign * n.x * n.x * a, sign * bb, -sign * n.x};
+        f.b = {bb, sign + n.y * n.y * a, -n.y};
+        f.n = n;
+        return f;
+    }
+    // Frame whose +x is the projection of `tangent_hint` onto the tangent plane.
+    // Fallback when the hint is (nearly) parallel to n: from_normal's basis, so
+    // the frame is always defined (anisotropy then has an arbitrary but fixed axis).
+    static Frame from_normal_tangent(const Vec3& n, const Vec3& tangent_hint) {
+        Vec3 t = tangent_hint - n * dot(n, tangent_hint);
+        double l = length(t);
+        if (!(l > 1e-9 * std::max(1.0, length(tangent_hint)))) return from_normal(n);
+        Frame f;
+        f.n = n;
+        f.t = t * (1.0 / l);
+        f.b = cross(n, f.t);
+        return f;
+    }
+    Vec3 to_local(const Vec3& v) const { return {dot(v, t), dot(v, b), dot(v, n)}; }
+    Vec3 to_world(const Vec3& v) const { return t * v.x + b * v.y + n * v.z; }
+};
+
+}  // namespace shading
