@@ -1,0 +1,179 @@
+# povray-brdf: POV-Ray 3.7.0.10 with measured-BRDF and dipole subsurface shading.
+#
+# `make` fetches Debian's povray source package through apt, verifies it, unpacks it
+# into povray/ (Debian's patches applied), applies our series from patches/ with
+# quilt, builds the POV-free shading library (shading/, CMake) and links it into an
+# -O2 build of POV-Ray (never -ffast-math). Everything it downloads or builds stays
+# inside this tree (.cache/, povray/, build/, .venv/), so a second `make` does nothing.
+#
+# `make help` lists the targets.
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := all
+MAKEFLAGS += --no-builtin-rules
+
+TOP        := $(CURDIR)
+JOBS       ?= $(shell nproc)
+UPSTREAM_VERSION := 1:3.7.0.10-2
+FORK_VERSION     := $(shell cat VERSION)
+
+CACHE      := .cache/upstream
+POVDIR     := povray
+BUILD      := build
+STAMPS     := $(BUILD)/stamps
+SHADING_BUILD := $(BUILD)/shading
+LIBSHADING := $(SHADING_BUILD)/libshading.a
+CONFDIR    := $(BUILD)/conf
+POVCONF    := $(CONFDIR)/povray/3.7
+FORK_BIN   := $(BUILD)/bin/povray-brdf
+STOCK_BIN  := /usr/bin/povray
+VENV       := .venv
+PY         := $(VENV)/bin/python
+
+DSC        := povray_3.7.0.10-2.dsc
+UPSTREAM_FILES := $(CACHE)/povray_3.7.0.10.orig.tar.gz $(CACHE)/povray_3.7.0.10-2.debian.tar.xz $(CACHE)/$(DSC)
+
+# Debian packages the project needs besides POV-Ray's own build dependencies
+# (those come from `apt-get build-dep povray`). `povray` is the stock reference.
+APT_PACKAGES := build-essential dpkg-dev devscripts quilt cmake ninja-build libgtest-dev \
+                python3 python3-venv povray povray-includes
+
+# POV-Ray's configure: --disable-optimiz stops it adding -ffast-math and -march=native.
+# The shading library reaches the fork through CPPFLAGS/LDFLAGS/LIBS, not by copying sources.
+POV_CXXFLAGS := -O2 -fno-fast-math
+POV_CONFIGURE_ARGS := --disable-optimiz --disable-strip --with-boost-thread=boost_thread \
+	--sysconfdir=$(TOP)/$(CONFDIR) \
+	COMPILED_BY="povray-brdf $(FORK_VERSION) (measured-BRDF and dipole subsurface fork)" \
+	CXXFLAGS="$(POV_CXXFLAGS)" \
+	CPPFLAGS="-I$(TOP)/shading/include" \
+	LDFLAGS="-L$(TOP)/$(SHADING_BUILD)" \
+	LIBS="-lshading -lpthread"
+
+# Stable quilt settings: the same patch text whoever refreshes it.
+QUILT_ENV := QUILT_PATCHES=$(TOP)/patches QUILT_PC=.pc-brdf QUILT_NO_DIFF_TIMESTAMPS=1 QUILT_NO_DIFF_INDEX=1
+QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
+PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
+
+.PHONY: all help deps fetch shading fork venv demo test test-all test-unit test-py bench \
+        check-patches refresh-patches clean distclean
+
+all: $(FORK_BIN) $(POVCONF)/povray.conf $(POVCONF)/povray.ini ## Build the fork (fetch, verify, patch, configure, build)
+	@echo "fork: $(FORK_BIN)"
+
+help: ## List the targets
+	@grep -hE '^[a-zA-Z_-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | expand -t 18
+
+# ---------------------------------------------------------------- dependencies
+# Installs what is missing through apt (needs root once); does nothing when all is there.
+deps: $(STAMPS)/deps ## Install build dependencies through apt (as root), once
+$(STAMPS)/deps: mk/deps.sh
+	@mkdir -p $(@D)
+	bash mk/deps.sh $(APT_PACKAGES)
+	@touch $@
+
+# ---------------------------------------------------------------- upstream source
+fetch: $(UPSTREAM_FILES) ## Download Debian's povray source package and verify sha256
+$(UPSTREAM_FILES) &: upstream.sha256 | $(STAMPS)/deps
+	@mkdir -p $(CACHE)
+	cd $(CACHE) && for f in $(notdir $(UPSTREAM_FILES)); do \
+	  if ! grep " $$f\$$" $(TOP)/upstream.sha256 | sha256sum -c --status 2>/dev/null; then rm -f $$f; fi; done
+	cd $(CACHE) && if ! sha256sum -c --status $(TOP)/upstream.sha256 2>/dev/null; then \
+	  apt-get source --download-only povray=$(UPSTREAM_VERSION) 2>&1 | grep -v '^W: Download is performed unsandboxed' ; fi
+	cd $(CACHE) && sha256sum -c $(TOP)/upstream.sha256
+	@touch $(UPSTREAM_FILES)
+
+# Pristine tree: Debian's source with Debian's 19 patches applied (dpkg-source -x).
+$(POVDIR)/.unpacked: $(UPSTREAM_FILES)
+	rm -rf $(POVDIR) $(POVDIR).tmp
+	dpkg-source --no-check -x $(CACHE)/$(DSC) $(POVDIR).tmp >/dev/null
+	mv $(POVDIR).tmp $(POVDIR)
+	@touch $@
+
+# Our series on top, with its own quilt state (.pc-brdf) so Debian's .pc stays untouched.
+# A changed patch re-applies the series; files whose content did not change keep their
+# timestamps (mk/apply-patches.sh), so only what the edit touches is rebuilt.
+$(POVDIR)/.patched: $(POVDIR)/.unpacked patches/series $(PATCHES) mk/apply-patches.sh
+	bash mk/apply-patches.sh $(POVDIR)
+	@touch $@
+
+# ---------------------------------------------------------------- shading library
+shading: $(LIBSHADING) ## Build the POV-free shading library and its tests
+$(SHADING_BUILD)/build.ninja: shading/CMakeLists.txt | $(STAMPS)/deps
+	cmake -S shading -B $(SHADING_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+
+# cmake/ninja knows the library's own dependencies: always ask it (a no-op is instant).
+$(LIBSHADING): $(SHADING_BUILD)/build.ninja FORCE
+	cmake --build $(SHADING_BUILD) -j $(JOBS) | { grep -v '^ninja: no work to do' || true; }
+
+# ---------------------------------------------------------------- the fork
+# Configure once per unpack (our patches touch no build files; the flags live here).
+$(POVDIR)/.configured: $(POVDIR)/.unpacked Makefile VERSION | $(POVDIR)/.patched $(LIBSHADING)
+	cd $(POVDIR)/unix/config && for ax in *.m4; do \
+	  if [ ! -h "$$ax" ] && [ -f "/usr/share/aclocal/$$ax" ]; then mv "$$ax" "$$ax.dist"; ln -s "/usr/share/aclocal/$$ax"; fi; done
+	if [ -d $(POVDIR)/libraries ]; then mv $(POVDIR)/libraries $(POVDIR)/libraries.donotuse; fi
+	cd $(POVDIR)/unix && ./prebuild.sh >/dev/null
+	cd $(POVDIR) && ./configure -q $(POV_CONFIGURE_ARGS) >/dev/null
+	@touch $@
+
+# POV's automake tree tracks its own header dependencies (ours included, via -I);
+# a newer libshading.a only needs a relink, which automake does not know about.
+$(FORK_BIN): $(POVDIR)/.configured $(POVDIR)/.patched $(LIBSHADING)
+	if [ -e $(POVDIR)/unix/povray ] && [ $(LIBSHADING) -nt $(POVDIR)/unix/povray ]; then rm -f $(POVDIR)/unix/povray; fi
+	$(MAKE) -C $(POVDIR) -j $(JOBS) >$(BUILD)/povray-build.log 2>&1 || { tail -40 $(BUILD)/povray-build.log; exit 1; }
+	@mkdir -p $(@D)
+	cp -p $(POVDIR)/unix/povray $@
+
+# The fork's own povray.conf/.ini (I/O restrictions on, library paths inside this tree).
+$(POVCONF)/%: conf/%.in Makefile
+	@mkdir -p $(@D)
+	sed -e 's|@TOP@|$(TOP)|g' -e 's|@POVDIR@|$(TOP)/$(POVDIR)|g' $< > $@
+
+fork: all
+
+# ---------------------------------------------------------------- python harness
+venv: $(VENV)/.installed ## Create the project venv with the harness requirements
+$(VENV)/.installed: harness/requirements.txt | $(STAMPS)/deps
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check -r harness/requirements.txt
+	@touch $@
+
+# ---------------------------------------------------------------- use
+demo: all ## Render scenes/demo.pov and print where the image is
+	@mkdir -p out
+	cd scenes && $(TOP)/$(FORK_BIN) +Idemo.pov +O$(TOP)/out/demo.png +W640 +H360 +A0.1 -D +WT$(JOBS) 2>$(TOP)/out/demo.log || { tail -20 $(TOP)/out/demo.log; exit 1; }
+	@grep -E 'Trace Time' out/demo.log | head -1 || true
+	@echo "demo image: $(TOP)/out/demo.png"
+
+test: all venv ## Build if needed, run the unit (ctest) and fast Python (pytest) suites
+	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
+	$(PY) -m pytest -q -m "not slow"
+
+test-all: all venv ## Everything in `test` plus the slow renders
+	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
+	$(PY) -m pytest -q
+
+bench: all venv ## Trace-time ratios fork/stock on reference scenes
+	$(PY) -m harness.bench
+
+# ---------------------------------------------------------------- patch tooling
+check-patches: $(UPSTREAM_FILES) ## Apply the series to a pristine tree; fail on fuzz or offset
+	bash mk/check-patches.sh $(CACHE)/$(DSC)
+
+refresh-patches: $(POVDIR)/.patched ## Refresh every patch with stable quilt settings
+	cd $(POVDIR) && $(QUILT_ENV) quilt pop -a -q >/dev/null 2>&1 || true
+	cd $(POVDIR) && while $(QUILT_ENV) quilt push -q >/dev/null 2>&1; do \
+	  $(QUILT_ENV) quilt refresh $(QUILT_REFRESH_ARGS); done
+	@touch $(POVDIR)/.patched
+
+clean: ## Remove build outputs (keeps the download cache and the venv)
+	rm -rf $(BUILD) $(POVDIR) out
+
+distclean: clean ## Also remove the download cache and the venv
+	rm -rf .cache $(VENV)
+
+$(STAMPS):
+	mkdir -p $@
+
+.PHONY: FORCE
+FORCE:
