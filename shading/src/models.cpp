@@ -1,0 +1,118 @@
+// Analytic non-microfacet BRDF models (models.h). Equations: MODELS.md.
+#include "shading/models.h"
+
+#include <sstream>
+
+namespace shading {
+
+namespace {
+std::string fmt(double v) {
+    std::ostringstream s;
+    s.precision(6);
+    s << v;
+    return s.str();
+}
+std::string fmt(const Rgb& c) {
+    if (c.r == c.g && c.g == c.b) return fmt(c.r);
+    return fmt(c.r) + "," + fmt(c.g) + "," + fmt(c.b);
+}
+// Largest double below 1: sampling maps need u < 1 strictly.
+constexpr double kOneMinusEps = 1.0 - 0x1.0p-53;
+}  // namespace
+
+// Every f below starts with the same guard: a direction at or below the surface
+// (z <= 0) reflects nothing, as the Brdf contract requires.
+
+Rgb Lambert::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    return lambert_f(rho);
+}
+std::string Lambert::describe() const { return "lambert(rho=" + fmt(rho) + ")"; }
+
+Rgb PhongPov::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    double c = phong_pov_contribution(dot(mirror_z(wo), wi), phong_size);
+    return lambert_f(diffuse) + phong * pov_contribution_to_f(c, wi.z);
+}
+std::string PhongPov::describe() const {
+    return "phong_pov(phong=" + fmt(phong) + " phong_size=" + fmt(phong_size) + " diffuse=" + fmt(diffuse) + ")";
+}
+
+Rgb BlinnPov::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    double c = blinn_pov_contribution(half_vector(wo, wi).z, roughness);
+    return lambert_f(diffuse) + specular * pov_contribution_to_f(c, wi.z);
+}
+std::string BlinnPov::describe() const {
+    return "blinn_pov(specular=" + fmt(specular) + " roughness=" + fmt(roughness) + " diffuse=" + fmt(diffuse) +
+           ")";
+}
+
+Rgb PhongNormalized::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    return lambert_f(kd) + ks * modified_phong_lobe(dot(mirror_z(wo), wi), n);
+}
+std::string PhongNormalized::describe() const {
+    return "phong_normalized(kd=" + fmt(kd) + " ks=" + fmt(ks) + " n=" + fmt(n) + ")";
+}
+
+Rgb Ward::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    double s = variant == WardVariant::Original ? ward_original_lobe(wo, wi, ax, ay) : ward_gmd_lobe(wo, wi, ax, ay);
+    return lambert_f(rho_d) + rho_s * s;
+}
+std::string Ward::describe() const {
+    return std::string("ward(variant=") + (variant == WardVariant::Original ? "original" : "gmd") +
+           " rho_d=" + fmt(rho_d) + " rho_s=" + fmt(rho_s) + " ax=" + fmt(ax) + " ay=" + fmt(ay) + ")";
+}
+double Ward::specular_probability() const {
+    double ws = rho_s.average(), wd = rho_d.average();
+    return ws + wd > 0 ? ws / (ws + wd) : 1.0;  // nothing reflects: any choice is valid
+}
+Vec3 Ward::sample(const Vec3& wo, double u1, double u2) const {
+    if (wo.z <= 0) return {};  // viewer below the surface: nothing to sample
+    double ps = specular_probability();
+    if (u1 < ps) {
+        Vec3 h = sample_beckmann_aniso(ax, ay, std::min(u1 / ps, kOneMinusEps), u2);
+        Vec3 wi = reflect_about(wo, h);
+        return wi.z > 0 ? wi : Vec3();  // mirrored below the horizon: no sample (pdf 0 there)
+    }
+    double v = std::min((u1 - ps) / (1.0 - ps), kOneMinusEps);
+    double r = std::sqrt(v), phi = 2.0 * kPi * u2;
+    return {r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0 - v)};
+}
+double Ward::pdf(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return 0.0;  // sample() never returns such pairs
+    double ps = specular_probability();
+    Vec3 h = half_vector(wo, wi);
+    // dw_h/dw_i = 1 / (4 V.h); V.h >= (N.V + N.L)/2 > 0 here.
+    double spec = d_beckmann_aniso(h, ax, ay) * h.z / (4.0 * dot(wo, h));
+    return ps * spec + (1.0 - ps) * wi.z * kInvPi;
+}
+
+Rgb OrenNayar::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    return lambert_f(rho) * oren_nayar_factor(wo, wi, oren_nayar_a(sigma), oren_nayar_b(sigma));
+}
+std::string OrenNayar::describe() const { return "oren_nayar(rho=" + fmt(rho) + " sigma=" + fmt(sigma) + ")"; }
+
+Rgb Lafortune::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    Rgb sum = lambert_f(kd);
+    for (const Lobe& l : lobes) sum += l.weight * lafortune_lobe(wo, wi, l.cx, l.cy, l.cz, l.n);
+    return sum;
+}
+bool Lafortune::anisotropic() const {
+    for (const Lobe& l : lobes)
+        if (l.cx != l.cy) return true;
+    return false;
+}
+std::string Lafortune::describe() const {
+    std::string s = "lafortune(kd=" + fmt(kd);
+    for (const Lobe& l : lobes)
+        s += " lobe=" + fmt(l.cx) + "," + fmt(l.cy) + "," + fmt(l.cz) + "," + fmt(l.n) + "," + fmt(l.weight.r) + "," +
+             fmt(l.weight.g) + "," + fmt(l.weight.b);
+    return s + ")";
+}
+
+}  // namespace shading

@@ -1,0 +1,112 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "shading/fresnel.h"
+
+using namespace shading;
+
+TEST(Fresnel, EtaOneIsZeroEverywhere) {
+    for (double c = 0.0; c <= 1.0; c += 0.01) {
+        EXPECT_EQ(fresnel_dielectric(c, 1.0), 0.0) << c;
+        EXPECT_EQ(fresnel_conductor(c, 1.0, 0.0), 0.0) << c;
+    }
+}
+
+TEST(Fresnel, NormalIncidenceClosedForms) {
+    for (double eta : {1.0001, 1.33, 1.5, 2.4, 0.5}) {
+        EXPECT_NEAR(fresnel_dielectric(1.0, eta), sqr((eta - 1) / (eta + 1)), 1e-15) << eta;
+        EXPECT_NEAR(f0_from_eta(eta), sqr((eta - 1) / (eta + 1)), 1e-15);
+    }
+    // Gold-like and aluminium-like indices.
+    for (auto nk : {std::pair<double, double>{0.18, 3.4}, {1.2, 7.0}, {1.5, 0.0}, {0.05, 0.0}}) {
+        double n = nk.first, k = nk.second;
+        double expect = (sqr(n - 1) + k * k) / (sqr(n + 1) + k * k);
+        EXPECT_NEAR(fresnel_conductor(1.0, n, k), expect, 1e-14) << n << " " << k;
+        EXPECT_NEAR(f0_from_conductor(n, k), expect, 1e-15);
+    }
+    // Schlick at normal incidence is F0, at grazing 1.
+    EXPECT_DOUBLE_EQ(fresnel_schlick(1.0, 0.04), 0.04);
+    EXPECT_DOUBLE_EQ(fresnel_schlick(0.0, 0.04), 1.0);
+}
+
+TEST(Fresnel, GrazingIsOne) {
+    for (double eta : {1.0001, 1.5, 0.7}) EXPECT_NEAR(fresnel_dielectric(0.0, eta), 1.0, 1e-12) << eta;
+    for (double n : {0.2, 1.5, 3.0}) EXPECT_NEAR(fresnel_conductor(0.0, n, 2.0), 1.0, 1e-12) << n;
+    // And approaches 1 continuously: 89.99 deg is already close.
+    double c = std::cos(89.99 * kPi / 180);
+    EXPECT_GT(fresnel_dielectric(c, 1.5), 0.99);
+    EXPECT_GT(fresnel_conductor(c, 0.18, 3.4), 0.99);
+}
+
+TEST(Fresnel, KnownValueAt45Degrees) {
+    // Glass eta = 1.5 at 45 deg: Rs = 0.0920, Rp = 0.00847 (textbook), average 0.0503.
+    double c = std::cos(kPi / 4);
+    double cos_t = std::sqrt(1 - 0.5 / 2.25);
+    double rs = sqr((c - 1.5 * cos_t) / (c + 1.5 * cos_t));
+    double rp = sqr((1.5 * c - cos_t) / (1.5 * c + cos_t));
+    EXPECT_NEAR(rs, 0.0920, 1e-4);
+    EXPECT_NEAR(rp, 0.00847, 1e-5);
+    EXPECT_NEAR(fresnel_dielectric(c, 1.5), 0.5 * (rs + rp), 1e-15);
+}
+
+TEST(Fresnel, TotalInternalReflection) {
+    double eta = 1.0 / 1.5;  // from glass into air
+    double critical = std::asin(eta);
+    EXPECT_EQ(fresnel_dielectric(std::cos(critical + 1e-6), eta), 1.0);
+    EXPECT_LT(fresnel_dielectric(std::cos(critical - 0.05), eta), 1.0);
+    // Light from inside (cos < 0) equals swapping the media.
+    EXPECT_NEAR(fresnel_dielectric(-0.9, 1.5), fresnel_dielectric(0.9, 1.0 / 1.5), 1e-15);
+    // Conductor formula with k = 0 handles TIR too.
+    EXPECT_NEAR(fresnel_conductor(std::cos(critical + 0.1), eta, 0.0), 1.0, 1e-12);
+}
+
+TEST(Fresnel, ConductorWithZeroKMatchesDielectric) {
+    for (double eta : {1.2, 1.5, 2.0, 0.8})
+        for (double c = 0.0; c <= 1.0; c += 0.05)
+            EXPECT_NEAR(fresnel_conductor(c, eta, 0.0), fresnel_dielectric(c, eta), 1e-12) << eta << " " << c;
+}
+
+TEST(Fresnel, ContinuousAndInUnitInterval) {
+    // Lipschitz-style check on a fine grid, including across the critical angle for eta < 1:
+    // no jump larger than a small multiple of the step (away from the sqrt singularity at
+    // the critical angle, the slope is bounded; there the curve is continuous but steep).
+    const int n = 20000;
+    for (double eta : {1.0001, 1.5, 3.0, 0.75}) {
+        double prev = fresnel_dielectric(0.0, eta);
+        for (int i = 1; i <= n; ++i) {
+            double c = double(i) / n, v = fresnel_dielectric(c, eta);
+            ASSERT_GE(v, 0.0);
+            ASSERT_LE(v, 1.0);
+            ASSERT_LT(std::abs(v - prev), 0.05) << eta << " " << c;
+            prev = v;
+        }
+    }
+    for (auto nk : {std::pair<double, double>{0.18, 3.4}, {1.5, 0.5}, {0.05, 4.0}}) {
+        double prev = fresnel_conductor(0.0, nk.first, nk.second);
+        for (int i = 1; i <= n; ++i) {
+            double c = double(i) / n, v = fresnel_conductor(c, nk.first, nk.second);
+            ASSERT_GE(v, 0.0);
+            ASSERT_LE(v, 1.0);
+            ASSERT_LT(std::abs(v - prev), 0.01) << nk.first << " " << c;
+            prev = v;
+        }
+    }
+}
+
+TEST(Fresnel, EtaNearOneIsNearZero) {
+    // Hard case eta = 1.0001: F ~ (1e-4 / 2)^2 at normal incidence and stays tiny until
+    // within a fraction of a degree of grazing.
+    EXPECT_NEAR(fresnel_dielectric(1.0, 1.0001), 2.5e-9, 1e-11);
+    EXPECT_LT(fresnel_dielectric(std::cos(80 * kPi / 180), 1.0001), 1e-5);
+    EXPECT_LT(fresnel_dielectric(std::cos(45 * kPi / 180), 1.0001), 1e-7);
+    EXPECT_TRUE(std::isfinite(fresnel_dielectric(1e-300, 1.0001)));
+}
+
+TEST(Fresnel, SchlickCloseToExactForGlass) {
+    double f0 = f0_from_eta(1.5);
+    for (double c = 0.0; c <= 1.0; c += 0.01)
+        EXPECT_NEAR(fresnel_schlick(c, f0), fresnel_dielectric(c, 1.5), 0.04) << c;  // Schlick errs by up to ~0.036 near 75-80 deg
+    Rgb s = fresnel_schlick(0.5, Rgb(0.1, 0.2, 0.3));
+    EXPECT_DOUBLE_EQ(s.g, fresnel_schlick(0.5, 0.2));
+}
