@@ -1,0 +1,296 @@
+// Tabulated BRDFs: an immutable float32 grid that implements Brdf, the tools that
+// build one (from a model, a simulated measurement, another table), the `.brdf` file
+// format (brdf_data/README.md is its specification) and a small PNG plotter.
+//
+// Grid and angles (all tables):
+//  * theta axes (theta_i, theta_r) have n nodes on [0, 90] deg, step 90/(n-1); the last
+//    node is exactly 90 deg (grazing). Lookups clamp theta to [0, 90].
+//  * Isotropic layout: axes (theta_i, theta_r, phi), phi = phi_r - phi_i with n nodes on
+//    [0, 180] deg, step 180/(n-1). An isotropic BRDF is even in phi, so any phi is
+//    folded first: phi -> |phi| mod 360, then phi in (180, 360) -> 360 - phi.
+//    phi = 180 is the plane of incidence on the mirror side (the specular peak).
+//  * Anisotropic layout: axes (theta_i, phi_i, theta_r, phi_r), absolute azimuths from
+//    the tangent (+x), n nodes on [0, 360) deg, step 360/n, periodic.
+//  * Storage order is row-major over the axes above with the channel index fastest.
+//  * Reciprocity-folded isotropic tables (geometry.folded) store only theta_i <= theta_r:
+//    the (theta_i, theta_r) pairs i <= r in row-major order (numpy.triu_indices order);
+//    a lookup of (i, r) with i > r reads (r, i). Folding a grid averages f(i,r) and f(r,i).
+//  * The pole: at theta = 0 the azimuth is undefined, so every table stores one value per
+//    pole row: BrdfTable's constructor replaces each theta_i = 0 row (and theta_r = 0 row)
+//    by its mean over the undefined azimuth. Lookups at the pole therefore cannot depend
+//    on phi, whatever azimuth the caller's frame produced.
+//
+// f(wo, wi) excludes cos(theta_i) like every Brdf (see vec.h). Tables are immutable after
+// construction: lookups are const, lock-free and safe from any number of threads.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "shading/brdf.h"
+
+namespace shading {
+
+// Every loader/validation failure. Messages read "NAME: offset N: expected X, found Y",
+// N being the byte offset in the file (or buffer) where the problem was found.
+class TableError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+[[noreturn]] void throw_table_error(const std::string& name, uint64_t offset, const std::string& expected,
+                                    const std::string& found);
+
+enum class TableLayout : uint32_t { Isotropic = 1, Anisotropic = 2 };
+// Linear = trilinear (isotropic) / quadrilinear (anisotropic) in the angles, phi periodic
+// where the axis is periodic. Nearest = the nearest node (ties to the larger index).
+enum class Interp { Nearest, Linear };
+// What to do with "no data" cells (NaN or negative values in measured data).
+//   Reject: error naming the first such cell.
+//   Fill:   per channel, along phi (phi_r for anisotropic) first: linear interpolation
+//           between the nearest valid nodes on each side of the same row (or a copy of
+//           the one valid side); rows with no valid node are then filled the same way
+//           along theta_r, then (anisotropic) phi_i, then theta_i. Each pass only reads
+//           values valid before it started, so the result does not depend on cell order.
+enum class NoDataPolicy { Reject, Fill };
+
+const char* to_string(Interp);
+const char* to_string(NoDataPolicy);
+Interp parse_interp(const std::string&);              // "nearest" | "linear" (or "trilinear")
+NoDataPolicy parse_nodata_policy(const std::string&);  // "reject" | "fill"
+
+struct TableGeometry {
+    TableLayout layout = TableLayout::Isotropic;
+    int channels = 3;                   // 1 (grey) or 3 (linear RGB)
+    uint32_t n[4] = {91, 91, 181, 1};   // nodes per axis; isotropic: n[3] == 1
+    bool folded = false;                // isotropic only; needs n[0] == n[1]
+
+    // step_deg must divide 90 (theta) and 180 (iso phi) / 360 (aniso phi) evenly;
+    // throws std::invalid_argument otherwise.
+    static TableGeometry isotropic(double step_deg = 1.0, int channels = 3, bool folded = false);
+    static TableGeometry anisotropic(double theta_step_deg = 5.0, double phi_step_deg = 5.0, int channels = 3);
+
+    int axes() const { return layout == TableLayout::Isotropic ? 3 : 4; }
+    bool is_phi_axis(int axis) const;    // iso: axis 2; aniso: axes 1 and 3
+    bool is_periodic(int axis) const;    // aniso phi axes
+    double step_deg(int axis) const;
+    double axis_deg(int axis, uint32_t index) const;  // angle of a node, degrees
+    // Angle tuples stored (folded: pairs theta_i <= theta_r only) and float values.
+    // Overflow-checked: throws std::overflow_error if the product does not fit 64 bits.
+    uint64_t cells() const;
+    uint64_t values() const;
+    // Throws std::invalid_argument if the geometry is not one the table supports.
+    void validate() const;
+    std::string describe() const;  // "isotropic 91x91x181 (1 deg), 3 channels, reciprocity-folded"
+};
+
+struct TableInfo {
+    std::string description;     // free text: where the data came from (shown by `brdftool info`)
+    uint64_t nodata_filled = 0;  // cells that had no data at conversion and were filled
+};
+
+class BrdfTable final : public Brdf {
+public:
+    // `values` follows `geometry` (see top of file); every value must be finite and >= 0
+    // (std::invalid_argument otherwise: apply a NoDataPolicy before). Averages the pole rows
+    // and computes the directional albedo.
+    BrdfTable(const TableGeometry& geometry, std::vector<float> values, TableInfo info = {},
+              Interp interp = Interp::Linear);
+
+    Rgb f(const Vec3& wo, const Vec3& wi) const override { return f(wo, wi, interp_); }
+    Rgb f(const Vec3& wo, const Vec3& wi, Interp interp) const;
+    bool anisotropic() const override { return geom_.layout == TableLayout::Anisotropic; }
+    std::string describe() const override;
+
+    // Lookups by angle, radians. Isotropic tables: phi = phi_r - phi_i, any real value.
+    // Anisotropic tables given (theta_i, theta_r, phi) use phi_i = 0, phi_r = phi.
+    Rgb eval_iso(double theta_i, double theta_r, double phi) const { return eval_iso(theta_i, theta_r, phi, interp_); }
+    Rgb eval_iso(double theta_i, double theta_r, double phi, Interp interp) const;
+    // Any layout; isotropic tables use phi_r - phi_i.
+    Rgb eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const;
+
+    // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
+    float node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const;
+
+    const TableGeometry& geometry() const { return geom_; }
+    const TableInfo& info() const { return info_; }
+    Interp interpolation() const { return interp_; }
+    const std::vector<float>& values() const { return values_; }
+
+    // Directional albedo a(theta_i) = integral over the hemisphere of f cos(theta_r) dw_r,
+    // computed at construction on a ~1 deg midpoint grid of the (interpolated) table with
+    // exact cos*sin weights per theta_r band (so a constant table integrates exactly).
+    // One entry per theta_i node; anisotropic tables: mean over the phi_i nodes.
+    const std::vector<Rgb>& albedo_nodes() const { return albedo_; }
+    Rgb directional_albedo(double theta_i) const;  // radians; linear between nodes
+    size_t bytes_used() const;
+
+private:
+    struct AxisPos {
+        uint32_t i0, i1;
+        double t;  // weight of i1
+    };
+    AxisPos locate(int axis, double deg, Interp interp) const;
+    uint64_t offset(const uint32_t idx[4]) const;  // of channel 0, in floats
+    Rgb gather(const AxisPos pos[4], Interp interp) const;
+    void average_poles();
+    void compute_albedo();
+
+    TableGeometry geom_;
+    std::vector<float> values_;
+    TableInfo info_;
+    Interp interp_;
+    std::vector<Rgb> albedo_;
+    uint64_t stride_[4] = {0, 0, 0, 0};  // unfolded strides in floats
+    double inv_step_[4] = {0, 0, 0, 0};  // nodes per degree
+};
+
+// ---------------------------------------------------------------- building tables
+
+// A table under construction: always unfolded, may hold no-data values (NaN or < 0).
+struct TableGrid {
+    TableGeometry geom;
+    std::vector<float> values;
+    TableGrid() = default;
+    explicit TableGrid(const TableGeometry& g, float init = 0.0f);  // g.folded is cleared
+    uint64_t cell(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3 = 0) const;  // cell index
+    float& at(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int c) {
+        return values[cell(a0, a1, a2, a3) * geom.channels + c];
+    }
+};
+
+struct BuildOptions {
+    NoDataPolicy nodata = NoDataPolicy::Fill;
+    bool fold = false;  // isotropic only: symmetrise (mean of f(i,r), f(r,i)) and store half
+    Interp interp = Interp::Linear;
+    std::string name = "table";  // for error messages
+    std::string description;
+    uint64_t prior_nodata_filled = 0;  // added to the filled count (e.g. from a file header)
+};
+
+// Applies the no-data policy in place; returns the number of cells that had no data.
+// Reject: TableError "NAME: offset N: ..." where N is the byte offset of the value in the
+// unfolded float32 payload. +-Inf is never "no data": always an error.
+uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::string& name);
+
+// Reciprocity of an unfolded grid over nodes: |f(i,r,...) - f(r,i,...)|.
+struct ReciprocityStats {
+    bool applicable = false;  // needs matching theta_i/theta_r (and phi_i/phi_r) node counts
+    double max_abs = 0, rms_abs = 0;
+    double max_rel = 0;  // max_abs / max |f| of the table
+    uint32_t worst[4] = {0, 0, 0, 0};
+};
+ReciprocityStats reciprocity(const TableGrid& grid);
+ReciprocityStats reciprocity(const BrdfTable& table);  // folded: exact zero
+
+// Policy, then folding, then the immutable table. Consumes the grid.
+std::unique_ptr<BrdfTable> build_table(TableGrid grid, const BuildOptions& opt);
+
+// A folded or unfolded table back to a full grid (folded halves mirrored).
+TableGrid unfold(const BrdfTable& table);
+
+// Samples a model at every node: isotropic nodes use wi at azimuth 0 and wo at azimuth phi;
+// anisotropic nodes use both absolute azimuths. One channel stores the RGB mean.
+// Non-finite or negative model values throw std::runtime_error naming the node.
+TableGrid tabulate(const Brdf& brdf, const TableGeometry& g);
+
+// Evaluates `src` (with `interp`) at the nodes of `g`.
+TableGrid resample(const BrdfTable& src, const TableGeometry& g, Interp interp = Interp::Linear);
+
+// Gonioreflectometer simulation on a tabulated grid, deterministic for a seed:
+// each value *= max(0, 1 + noise * N(0,1)) (independent per value), then each cell is
+// missing (all channels NaN) with probability `missing`. Returns the missing-cell count.
+struct MeasurementSim {
+    double noise = 0.02;
+    double missing = 0.001;
+    uint64_t seed = 1;
+};
+uint64_t simulate_measurement(TableGrid& grid, const MeasurementSim& sim);
+
+// ---------------------------------------------------------------- checks
+
+struct CheckReport {
+    ReciprocityStats recip;
+    std::vector<double> theta_i_deg;  // where the albedo below was evaluated
+    std::vector<Rgb> albedo;
+    uint32_t albedo_nodes_over_one = 0;  // theta_i nodes with a channel albedo > 1 + tol
+    double max_albedo = 0, max_albedo_theta_deg = 0;
+};
+CheckReport check_table(const BrdfTable& table, const std::vector<double>& theta_i_deg,
+                        double albedo_tolerance = 1e-3);
+
+// ---------------------------------------------------------------- the .brdf file
+
+constexpr uint32_t kTableVersion = 1;
+constexpr size_t kTableFixedHeader = 112;
+constexpr uint32_t kFlagFolded = 1u << 0;
+constexpr uint32_t kFlagNoDataFilled = 1u << 1;
+constexpr uint32_t kUnitsPerSr = 1;
+
+struct TableHeader {
+    uint32_t version = 0;
+    uint32_t payload_offset = 0;
+    uint32_t flags = 0;
+    TableGeometry geom;
+    uint64_t payload_bytes = 0;
+    uint64_t checksum = 0;  // FNV-1a-64 of the payload bytes
+    uint64_t nodata_filled = 0;
+    std::string description;
+};
+
+struct LoadOptions {
+    NoDataPolicy nodata = NoDataPolicy::Reject;  // for NaN/negative values in the payload
+    Interp interp = Interp::Linear;
+    uint64_t max_payload_bytes = uint64_t(2) << 30;  // 2 GiB
+};
+
+// FNV-1a, 64 bit (offset basis 0xcbf29ce484222325, prime 0x100000001b3).
+uint64_t fnv1a64(const uint8_t* data, size_t size);
+
+// Validates the header, the sizes and the checksum of a .brdf image; allocates nothing
+// but the description string. Throws TableError.
+TableHeader parse_table_header(const uint8_t* data, size_t size, const std::string& name,
+                               uint64_t max_payload_bytes = uint64_t(2) << 30);
+struct ValueScan {
+    uint64_t nan = 0, inf = 0, negative = 0;
+    uint64_t first_bad_offset = UINT64_MAX;  // byte offset in the file
+};
+ValueScan scan_table_values(const uint8_t* data, const TableHeader& header);
+
+// Everything above, then the finiteness/sign rule, then the table. `name` is what error
+// messages call the data (POV-Ray passes the file name it opened).
+std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const std::string& name,
+                                      const LoadOptions& opt = {});
+std::unique_ptr<BrdfTable> load_table_file(const std::string& path, const LoadOptions& opt = {});
+std::vector<uint8_t> encode_table(const BrdfTable& table);
+void save_table_file(const BrdfTable& table, const std::string& path);
+
+// Whole-file helpers (TableError naming the path on failure).
+std::vector<uint8_t> read_file_bytes(const std::string& path);
+void write_file_bytes(const std::string& path, const std::vector<uint8_t>& bytes);
+
+// ---------------------------------------------------------------- plots
+
+struct Image {
+    int width = 0, height = 0;
+    std::vector<uint8_t> rgb;  // row-major, 3 bytes per pixel
+};
+// Minimal PNG (8-bit RGB, zlib stream of stored deflate blocks, CRC-32 and Adler-32).
+std::vector<uint8_t> encode_png(const Image& img);
+
+struct PlotOptions {
+    std::vector<double> theta_i_deg = {0, 30, 60, 75};
+    bool log_scale = false;      // radius = log10(f / max), 3 decades, instead of f / max
+    bool shared_scale = false;   // one max over all panels instead of one per panel
+    int panel_radius = 180;      // pixels
+};
+// Polar slices in the plane of incidence, one panel per theta_i: light arrives from the
+// left at theta_i (orange), the radius at angle theta_r from the normal is f(theta_i,
+// theta_r) scaled to the panel maximum; right of the normal is the mirror side (phi = 180),
+// left the back-scatter side (phi = 0). Curves are red/green/blue (black for 1 channel).
+Image plot_incidence_plane(const BrdfTable& table, const PlotOptions& opt);
+
+}  // namespace shading

@@ -1,0 +1,710 @@
+// BrdfTable lookups, albedo, and the tools that build tables (fill, fold, tabulate,
+// resample, measurement simulation, checks). The file format lives in table_io.cpp.
+#include "shading/table.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+namespace shading {
+
+namespace {
+
+constexpr double kDeg = kPi / 180.0;
+constexpr double kRadToDeg = 180.0 / kPi;
+
+// Node counts the format accepts: theta down to 0.01 deg, phi likewise. Anything above is
+// a corrupt header, not a table (a 0.01 deg isotropic table is already ~2 TB).
+constexpr uint32_t kMaxThetaNodes = 9001;
+constexpr uint32_t kMaxIsoPhiNodes = 18001;
+constexpr uint32_t kMaxAnisoPhiNodes = 36000;
+
+uint32_t nodes_for_step(double range, double step, bool closed, const char* what) {
+    if (!(step > 0) || !std::isfinite(step))
+        throw std::invalid_argument(std::string("table step for ") + what + " must be a positive number of degrees");
+    double k = range / step;
+    double kr = std::round(k);
+    if (kr < 1 || std::fabs(k - kr) > 1e-9 * std::max(1.0, k) || kr > 1e6)
+        throw std::invalid_argument(std::string("table step ") + std::to_string(step) + " deg does not divide " +
+                                    std::to_string(int(range)) + " deg (" + what + ")");
+    return uint32_t(kr) + (closed ? 1u : 0u);
+}
+
+uint64_t mul_checked(uint64_t a, uint64_t b) {
+    uint64_t r;
+    if (__builtin_mul_overflow(a, b, &r)) throw std::overflow_error("table size overflows 64 bits");
+    return r;
+}
+
+std::string fmt_g(double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.9g", v);
+    return buf;
+}
+
+bool valid_value(float v) { return std::isfinite(v) && v >= 0.0f; }
+
+// Human-readable node label for error messages.
+std::string cell_label(const TableGeometry& g, const uint32_t idx[4], int channel) {
+    std::ostringstream s;
+    if (g.layout == TableLayout::Isotropic) {
+        s << "theta_i=" << fmt_g(g.axis_deg(0, idx[0])) << " theta_r=" << fmt_g(g.axis_deg(1, idx[1]))
+          << " phi=" << fmt_g(g.axis_deg(2, idx[2]));
+    } else {
+        s << "theta_i=" << fmt_g(g.axis_deg(0, idx[0])) << " phi_i=" << fmt_g(g.axis_deg(1, idx[1]))
+          << " theta_r=" << fmt_g(g.axis_deg(2, idx[2])) << " phi_r=" << fmt_g(g.axis_deg(3, idx[3]));
+    }
+    s << " deg, channel " << channel;
+    return s.str();
+}
+
+std::string value_text(float v) {
+    if (std::isnan(v)) return "nan";
+    if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+    return fmt_g(v);
+}
+
+// Cell index -> per-axis indices of an unfolded grid.
+void unravel(const TableGeometry& g, uint64_t cell, uint32_t idx[4]) {
+    idx[3] = 0;
+    for (int a = g.axes() - 1; a >= 0; --a) {
+        idx[a] = uint32_t(cell % g.n[a]);
+        cell /= g.n[a];
+    }
+}
+
+// Fill the invalid entries of one line from the nearest valid entries on either side
+// (linear in the node distance; a copy when only one side has data). `ok` is the
+// validity before this pass; `filled` receives which entries were written.
+void fill_line(std::vector<double>& v, const std::vector<uint8_t>& ok, std::vector<uint8_t>& filled, bool periodic,
+               std::vector<int>& valid) {
+    const int n = int(v.size());
+    valid.clear();
+    for (int p = 0; p < n; ++p)
+        if (ok[p]) valid.push_back(p);
+    std::fill(filled.begin(), filled.end(), 0);
+    if (valid.empty() || int(valid.size()) == n) return;
+    for (int p = 0; p < n; ++p) {
+        if (ok[p]) continue;
+        auto it = std::lower_bound(valid.begin(), valid.end(), p);
+        bool has_r = it != valid.end(), has_l = it != valid.begin();
+        int r = has_r ? *it : -1, l = has_l ? *(it - 1) : -1;
+        double dl = p - l, dr = r - p;
+        if (periodic) {
+            if (!has_r) { r = valid.front(); dr = r + n - p; has_r = true; }
+            if (!has_l) { l = valid.back(); dl = p + n - l; has_l = true; }
+        }
+        if (has_l && has_r)
+            v[p] = (v[l] * dr + v[r] * dl) / (dl + dr);
+        else
+            v[p] = has_l ? v[l] : v[r];
+        filled[p] = 1;
+    }
+}
+
+ReciprocityStats reciprocity_of(const TableGeometry& g, const float* v) {
+    ReciprocityStats s;
+    const int C = g.channels;
+    double fmax = 0;
+    for (uint64_t k = 0, nv = g.values(); k < nv; ++k)
+        if (valid_value(v[k])) fmax = std::max(fmax, double(v[k]));
+    if (g.folded) {
+        s.applicable = true;
+        return s;
+    }
+    if (g.layout == TableLayout::Isotropic ? g.n[0] != g.n[1] : (g.n[0] != g.n[2] || g.n[1] != g.n[3])) return s;
+    s.applicable = true;
+    double sum2 = 0;
+    uint64_t count = 0;
+    const uint64_t cells = g.cells();
+    uint32_t idx[4], sw[4];
+    for (uint64_t c = 0; c < cells; ++c) {
+        unravel(g, c, idx);
+        uint64_t other;
+        if (g.layout == TableLayout::Isotropic) {
+            if (idx[0] >= idx[1]) continue;  // each unordered pair once, diagonal excluded
+            sw[0] = idx[1]; sw[1] = idx[0]; sw[2] = idx[2]; sw[3] = 0;
+            other = (uint64_t(sw[0]) * g.n[1] + sw[1]) * g.n[2] + sw[2];
+        } else {
+            sw[0] = idx[2]; sw[1] = idx[3]; sw[2] = idx[0]; sw[3] = idx[1];
+            other = ((uint64_t(sw[0]) * g.n[1] + sw[1]) * g.n[2] + sw[2]) * g.n[3] + sw[3];
+            if (other <= c) continue;
+        }
+        for (int ch = 0; ch < C; ++ch) {
+            float a = v[c * C + ch], b = v[other * C + ch];
+            if (!valid_value(a) || !valid_value(b)) continue;
+            double d = std::fabs(double(a) - double(b));
+            sum2 += d * d;
+            ++count;
+            if (d > s.max_abs) {
+                s.max_abs = d;
+                std::copy(idx, idx + 4, s.worst);
+            }
+        }
+    }
+    s.rms_abs = count ? std::sqrt(sum2 / double(count)) : 0.0;
+    s.max_rel = fmax > 0 ? s.max_abs / fmax : 0.0;
+    return s;
+}
+
+// splitmix64: a fully specified generator, so a seed gives the same table everywhere
+// (std::normal_distribution is implementation-defined).
+struct SplitMix64 {
+    uint64_t x;
+    uint64_t next() {
+        uint64_t z = (x += 0x9e3779b97f4a7c15ull);
+        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+        return z ^ (z >> 31);
+    }
+    double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+    double normal() {  // Box-Muller; 1 - u keeps log() away from 0
+        double u1 = 1.0 - uniform(), u2 = uniform();
+        return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
+    }
+};
+
+}  // namespace
+
+[[noreturn]] void throw_table_error(const std::string& name, uint64_t offset, const std::string& expected,
+                                    const std::string& found) {
+    throw TableError(name + ": offset " + std::to_string(offset) + ": expected " + expected + ", found " + found);
+}
+
+const char* to_string(Interp i) { return i == Interp::Nearest ? "nearest" : "linear"; }
+const char* to_string(NoDataPolicy p) { return p == NoDataPolicy::Fill ? "fill" : "reject"; }
+Interp parse_interp(const std::string& s) {
+    if (s == "nearest") return Interp::Nearest;
+    if (s == "linear" || s == "trilinear") return Interp::Linear;
+    throw std::invalid_argument("interpolation '" + s + "': expected nearest or linear");
+}
+NoDataPolicy parse_nodata_policy(const std::string& s) {
+    if (s == "fill") return NoDataPolicy::Fill;
+    if (s == "reject") return NoDataPolicy::Reject;
+    throw std::invalid_argument("no-data policy '" + s + "': expected fill or reject");
+}
+
+// ---------------------------------------------------------------- geometry
+
+TableGeometry TableGeometry::isotropic(double step_deg, int channels, bool folded) {
+    TableGeometry g;
+    g.layout = TableLayout::Isotropic;
+    g.channels = channels;
+    g.n[0] = g.n[1] = nodes_for_step(90.0, step_deg, true, "theta");
+    g.n[2] = nodes_for_step(180.0, step_deg, true, "phi");
+    g.n[3] = 1;
+    g.folded = folded;
+    g.validate();
+    return g;
+}
+
+TableGeometry TableGeometry::anisotropic(double theta_step_deg, double phi_step_deg, int channels) {
+    TableGeometry g;
+    g.layout = TableLayout::Anisotropic;
+    g.channels = channels;
+    g.n[0] = g.n[2] = nodes_for_step(90.0, theta_step_deg, true, "theta");
+    g.n[1] = g.n[3] = nodes_for_step(360.0, phi_step_deg, false, "phi");
+    g.folded = false;
+    g.validate();
+    return g;
+}
+
+bool TableGeometry::is_phi_axis(int axis) const {
+    return layout == TableLayout::Isotropic ? axis == 2 : (axis == 1 || axis == 3);
+}
+bool TableGeometry::is_periodic(int axis) const { return layout == TableLayout::Anisotropic && is_phi_axis(axis); }
+
+double TableGeometry::step_deg(int axis) const {
+    if (!is_phi_axis(axis)) return 90.0 / double(n[axis] - 1);
+    if (is_periodic(axis)) return 360.0 / double(n[axis]);
+    return 180.0 / double(n[axis] - 1);
+}
+
+double TableGeometry::axis_deg(int axis, uint32_t index) const {
+    // The last theta/iso-phi node is exactly the range end, not a rounded multiple.
+    if (!is_periodic(axis) && index + 1 == n[axis]) return is_phi_axis(axis) ? 180.0 : 90.0;
+    return double(index) * step_deg(axis);
+}
+
+uint64_t TableGeometry::cells() const {
+    if (folded) return mul_checked(mul_checked(n[0], uint64_t(n[0]) + 1) / 2, n[2]);
+    uint64_t c = 1;
+    for (int a = 0; a < axes(); ++a) c = mul_checked(c, n[a]);
+    return c;
+}
+uint64_t TableGeometry::values() const { return mul_checked(cells(), uint64_t(channels)); }
+
+void TableGeometry::validate() const {
+    auto bad = [](const std::string& m) { throw std::invalid_argument("table geometry: " + m); };
+    if (layout != TableLayout::Isotropic && layout != TableLayout::Anisotropic) bad("unknown layout");
+    if (channels != 1 && channels != 3) bad("channels must be 1 or 3, not " + std::to_string(channels));
+    for (int a = 0; a < axes(); ++a) {
+        uint32_t hi = !is_phi_axis(a) ? kMaxThetaNodes : (is_periodic(a) ? kMaxAnisoPhiNodes : kMaxIsoPhiNodes);
+        if (n[a] < 2 || n[a] > hi)
+            bad("axis " + std::to_string(a) + " has " + std::to_string(n[a]) + " nodes, range [2, " +
+                std::to_string(hi) + "]");
+    }
+    if (layout == TableLayout::Isotropic && n[3] != 1) bad("isotropic tables have n[3] == 1");
+    if (folded && layout != TableLayout::Isotropic) bad("only isotropic tables can be reciprocity-folded");
+    if (folded && n[0] != n[1]) bad("a folded table needs as many theta_i as theta_r nodes");
+}
+
+std::string TableGeometry::describe() const {
+    std::ostringstream s;
+    s << (layout == TableLayout::Isotropic ? "isotropic " : "anisotropic ");
+    for (int a = 0; a < axes(); ++a) s << (a ? "x" : "") << n[a];
+    s << " (theta " << fmt_g(step_deg(0)) << " deg, phi " << fmt_g(step_deg(layout == TableLayout::Isotropic ? 2 : 1))
+      << " deg), " << channels << (channels == 1 ? " channel" : " channels");
+    if (folded) s << ", reciprocity-folded";
+    return s.str();
+}
+
+// ---------------------------------------------------------------- BrdfTable
+
+BrdfTable::BrdfTable(const TableGeometry& geometry, std::vector<float> values, TableInfo info, Interp interp)
+    : geom_(geometry), values_(std::move(values)), info_(std::move(info)), interp_(interp) {
+    geom_.validate();
+    if (values_.size() != geom_.values())
+        throw std::invalid_argument("BrdfTable: " + std::to_string(values_.size()) + " values for " +
+                                    geom_.describe() + " (needs " + std::to_string(geom_.values()) + ")");
+    for (size_t k = 0; k < values_.size(); ++k)
+        if (!valid_value(values_[k]))
+            throw std::invalid_argument("BrdfTable: value " + std::to_string(k) + " is " + value_text(values_[k]) +
+                                        "; apply a no-data policy first");
+    uint64_t s = uint64_t(geom_.channels);
+    for (int a = geom_.axes() - 1; a >= 0; --a) {
+        stride_[a] = s;
+        s *= geom_.n[a];
+    }
+    for (int a = 0; a < geom_.axes(); ++a) inv_step_[a] = 1.0 / geom_.step_deg(a);
+    average_poles();
+    compute_albedo();
+}
+
+uint64_t BrdfTable::offset(const uint32_t idx[4]) const {
+    if (!geom_.folded) {
+        uint64_t o = 0;
+        for (int a = 0; a < geom_.axes(); ++a) o += idx[a] * stride_[a];
+        return o;
+    }
+    // Folded: pairs (i <= r) row-major; row i starts after n + (n-1) + ... + (n-i+1) pairs.
+    uint64_t i = std::min(idx[0], idx[1]), r = std::max(idx[0], idx[1]), n = geom_.n[0];
+    uint64_t pair = i * n - i * (i - 1) / 2 + (r - i);
+    return (pair * geom_.n[2] + idx[2]) * uint64_t(geom_.channels);
+}
+
+float BrdfTable::node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const {
+    uint32_t idx[4] = {a0, a1, a2, geom_.axes() == 4 ? a3 : 0};
+    for (int a = 0; a < geom_.axes(); ++a)
+        if (idx[a] >= geom_.n[a]) throw std::out_of_range("BrdfTable::node: index out of range");
+    if (channel < 0 || channel >= geom_.channels) throw std::out_of_range("BrdfTable::node: channel out of range");
+    return values_[offset(idx) + uint64_t(channel)];
+}
+
+BrdfTable::AxisPos BrdfTable::locate(int axis, double deg, Interp interp) const {
+    const uint32_t n = geom_.n[axis];
+    double x;
+    if (geom_.is_periodic(axis)) {
+        double d = std::fmod(deg, 360.0);
+        if (d < 0) d += 360.0;
+        x = d * inv_step_[axis];
+        if (!(x >= 0) || x >= double(n)) x = 0;  // NaN, or 360 - ulp rounding up to n
+        if (interp == Interp::Nearest) {
+            uint32_t i = uint32_t(std::floor(x + 0.5)) % n;
+            return {i, i, 0.0};
+        }
+        uint32_t i0 = std::min(uint32_t(x), n - 1);
+        return {i0, (i0 + 1) % n, x - double(i0)};
+    }
+    double d = deg;
+    if (geom_.is_phi_axis(axis)) {
+        // Isotropic: f is even in phi and 360-periodic, so fold onto [0, 180].
+        d = std::fmod(std::fabs(d), 360.0);
+        if (d > 180.0) d = 360.0 - d;
+    }
+    x = d * inv_step_[axis];
+    const double last = double(n - 1);
+    if (!(x > 0)) x = 0;  // also NaN
+    if (x > last) x = last;
+    if (interp == Interp::Nearest) {
+        uint32_t i = uint32_t(std::floor(x + 0.5));
+        return {i, i, 0.0};
+    }
+    uint32_t i0 = std::min(uint32_t(x), n - 2);  // x == last: (n-2, n-1) with weight 1
+    return {i0, i0 + 1, x - double(i0)};
+}
+
+Rgb BrdfTable::gather(const AxisPos pos[4], Interp interp) const {
+    const int A = geom_.axes(), C = geom_.channels;
+    uint32_t idx[4] = {0, 0, 0, 0};
+    if (interp == Interp::Nearest) {
+        for (int a = 0; a < A; ++a) idx[a] = pos[a].i0;
+        const float* p = &values_[offset(idx)];
+        return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
+    }
+    double acc[3] = {0, 0, 0};
+    for (uint32_t corner = 0; corner < (1u << A); ++corner) {
+        double w = 1.0;
+        for (int a = 0; a < A; ++a) {
+            bool hi = (corner >> a) & 1u;
+            idx[a] = hi ? pos[a].i1 : pos[a].i0;
+            w *= hi ? pos[a].t : 1.0 - pos[a].t;
+        }
+        if (w == 0.0) continue;  // exact at nodes, and no read of a weightless corner
+        const float* p = &values_[offset(idx)];
+        for (int c = 0; c < C; ++c) acc[c] += w * double(p[c]);
+    }
+    return C == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
+}
+
+Rgb BrdfTable::eval_iso(double theta_i, double theta_r, double phi, Interp interp) const {
+    if (geom_.layout == TableLayout::Anisotropic) return eval_aniso(theta_i, 0.0, theta_r, phi, interp);
+    AxisPos pos[4] = {locate(0, theta_i * kRadToDeg, interp), locate(1, theta_r * kRadToDeg, interp),
+                      locate(2, phi * kRadToDeg, interp), {0, 0, 0.0}};
+    return gather(pos, interp);
+}
+
+Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {
+    if (geom_.layout == TableLayout::Isotropic) return eval_iso(theta_i, theta_r, phi_r - phi_i, interp);
+    AxisPos pos[4] = {locate(0, theta_i * kRadToDeg, interp), locate(1, phi_i * kRadToDeg, interp),
+                      locate(2, theta_r * kRadToDeg, interp), locate(3, phi_r * kRadToDeg, interp)};
+    return gather(pos, interp);
+}
+
+Rgb BrdfTable::f(const Vec3& wo, const Vec3& wi, Interp interp) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    // atan2 of (sin, cos) keeps full precision near the pole, where acos(z) does not.
+    double ti = std::atan2(std::hypot(wi.x, wi.y), wi.z);
+    double tr = std::atan2(std::hypot(wo.x, wo.y), wo.z);
+    if (geom_.layout == TableLayout::Isotropic) {
+        // |phi_r - phi_i| in [0, pi] from the projected directions; atan2(0, 0) = 0 at a pole,
+        // where the pole rows make the value independent of phi anyway.
+        double phi = std::atan2(std::fabs(wi.x * wo.y - wi.y * wo.x), wi.x * wo.x + wi.y * wo.y);
+        return eval_iso(ti, tr, phi, interp);
+    }
+    return eval_aniso(ti, std::atan2(wi.y, wi.x), tr, std::atan2(wo.y, wo.x), interp);
+}
+
+std::string BrdfTable::describe() const {
+    std::string d = info_.description.empty() ? std::string("tabulated") : info_.description;
+    return "table(" + d + "; " + geom_.describe() + ")";
+}
+
+void BrdfTable::average_poles() {
+    const int C = geom_.channels;
+    uint32_t idx[4] = {0, 0, 0, 0};
+    // Replace the row over axis `vary` through `fixed` by its per-channel mean.
+    auto average_row = [&](int vary) {
+        double sum[3] = {0, 0, 0};
+        for (uint32_t k = 0; k < geom_.n[vary]; ++k) {
+            idx[vary] = k;
+            const float* p = &values_[offset(idx)];
+            for (int c = 0; c < C; ++c) sum[c] += p[c];
+        }
+        for (uint32_t k = 0; k < geom_.n[vary]; ++k) {
+            idx[vary] = k;
+            float* p = &values_[offset(idx)];
+            for (int c = 0; c < C; ++c) p[c] = float(sum[c] / double(geom_.n[vary]));
+        }
+    };
+    if (geom_.layout == TableLayout::Isotropic) {
+        // theta_i = 0: phi is undefined -> one value per theta_r; likewise theta_r = 0.
+        for (uint32_t r = 0; r < geom_.n[1]; ++r) { idx[0] = 0; idx[1] = r; average_row(2); }
+        for (uint32_t i = 0; i < geom_.n[0]; ++i) { idx[0] = i; idx[1] = 0; average_row(2); }
+    } else {
+        // theta_i = 0: phi_i undefined (f still depends on the absolute phi_r), and vice versa.
+        for (uint32_t r = 0; r < geom_.n[2]; ++r)
+            for (uint32_t q = 0; q < geom_.n[3]; ++q) { idx[0] = 0; idx[2] = r; idx[3] = q; average_row(1); }
+        for (uint32_t i = 0; i < geom_.n[0]; ++i)
+            for (uint32_t p = 0; p < geom_.n[1]; ++p) { idx[0] = i; idx[1] = p; idx[2] = 0; average_row(3); }
+    }
+}
+
+void BrdfTable::compute_albedo() {
+    const bool iso = geom_.layout == TableLayout::Isotropic;
+    const int ta = iso ? 1 : 2;  // theta_r axis
+    // ~1 deg integration cells (never coarser than the table) for isotropic tables; the
+    // 4-D tables integrate at the table's own resolution with a floor of 2 / 5 deg.
+    const uint32_t nt = iso ? std::max<uint32_t>(geom_.n[1] - 1, 90) : std::max<uint32_t>(geom_.n[2] - 1, 45);
+    const uint32_t np = iso ? std::max<uint32_t>(geom_.n[2] - 1, 180) : std::max<uint32_t>(geom_.n[3], 72);
+    const double dt = 90.0 / nt, dp = (iso ? 180.0 : 360.0) / np;
+    std::vector<AxisPos> tpos(nt), ppos(np);
+    std::vector<double> tw(nt);
+    for (uint32_t j = 0; j < nt; ++j) {
+        double a = j * dt * kDeg, b = (j + 1) * dt * kDeg;
+        // Exact integral of cos(t) sin(t) over the band: a constant f integrates exactly.
+        tw[j] = 0.5 * (sqr(std::sin(b)) - sqr(std::sin(a)));
+        tpos[j] = locate(ta, (j + 0.5) * dt, Interp::Linear);
+    }
+    for (uint32_t k = 0; k < np; ++k) ppos[k] = locate(iso ? 2 : 3, (k + 0.5) * dp, Interp::Linear);
+    // Isotropic: the phi integral over [0, 2pi) is twice the one over [0, pi].
+    const double phi_w = dp * kDeg * (iso ? 2.0 : 1.0);
+
+    albedo_.assign(geom_.n[0], Rgb(0.0));
+    const uint32_t n_phi_i = iso ? 1 : geom_.n[1];
+    for (uint32_t i = 0; i < geom_.n[0]; ++i) {
+        Rgb total(0.0);
+        for (uint32_t pi = 0; pi < n_phi_i; ++pi) {
+            AxisPos pos[4] = {{i, i, 0.0}, {0, 0, 0.0}, {0, 0, 0.0}, {0, 0, 0.0}};
+            if (!iso) pos[1] = {pi, pi, 0.0};
+            for (uint32_t j = 0; j < nt; ++j) {
+                pos[ta] = tpos[j];
+                Rgb band(0.0);
+                for (uint32_t k = 0; k < np; ++k) {
+                    pos[iso ? 2 : 3] = ppos[k];
+                    band += gather(pos, Interp::Linear);
+                }
+                total += band * (tw[j] * phi_w);
+            }
+        }
+        albedo_[i] = total / double(n_phi_i);
+    }
+}
+
+Rgb BrdfTable::directional_albedo(double theta_i) const {
+    AxisPos p = locate(0, theta_i * kRadToDeg, Interp::Linear);
+    return albedo_[p.i0] * (1.0 - p.t) + albedo_[p.i1] * p.t;
+}
+
+size_t BrdfTable::bytes_used() const {
+    return sizeof(*this) + values_.capacity() * sizeof(float) + albedo_.capacity() * sizeof(Rgb) +
+           info_.description.capacity();
+}
+
+// ---------------------------------------------------------------- grids
+
+TableGrid::TableGrid(const TableGeometry& g, float init) : geom(g) {
+    geom.folded = false;
+    geom.validate();
+    values.assign(geom.values(), init);
+}
+
+uint64_t TableGrid::cell(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3) const {
+    uint64_t c = (uint64_t(a0) * geom.n[1] + a1) * geom.n[2] + a2;
+    return geom.layout == TableLayout::Anisotropic ? c * geom.n[3] + a3 : c;
+}
+
+uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::string& name) {
+    const TableGeometry& g = grid.geom;
+    const int C = g.channels, A = g.axes();
+    std::vector<float>& v = grid.values;
+    if (v.size() != g.values()) throw std::invalid_argument("apply_nodata_policy: grid size does not match geometry");
+    uint32_t idx[4];
+    uint64_t bad_cells = 0, first_bad = UINT64_MAX;
+    for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
+        bool bad = false;
+        for (int c = 0; c < C; ++c) {
+            float x = v[cell * C + c];
+            if (std::isinf(x)) {
+                unravel(g, cell, idx);
+                throw_table_error(name, (cell * C + c) * 4,
+                                  "a finite value or a no-data marker (NaN or < 0) at " + cell_label(g, idx, c),
+                                  value_text(x));
+            }
+            if (!valid_value(x)) {
+                bad = true;
+                if (first_bad == UINT64_MAX) first_bad = cell * C + c;
+            }
+        }
+        bad_cells += bad;
+    }
+    if (bad_cells == 0) return 0;
+    if (policy == NoDataPolicy::Reject) {
+        unravel(g, first_bad / C, idx);
+        throw_table_error(name, first_bad * 4,
+                          "a value >= 0 at " + cell_label(g, idx, int(first_bad % C)) + " (no-data policy: reject)",
+                          value_text(v[first_bad]));
+    }
+
+    // Fill passes: phi (phi_r) first, then the remaining axes from last to first.
+    std::vector<uint8_t> ok(v.size());
+    std::vector<double> line;
+    std::vector<uint8_t> line_ok, line_filled;
+    std::vector<int> scratch;
+    uint64_t stride[4];
+    {
+        uint64_t s = 1;
+        for (int a = A - 1; a >= 0; --a) { stride[a] = s; s *= g.n[a]; }
+    }
+    for (int axis = A - 1; axis >= 0; --axis) {
+        bool any_bad = false;
+        for (size_t k = 0; k < v.size(); ++k) {
+            ok[k] = valid_value(v[k]);
+            any_bad |= !ok[k];
+        }
+        if (!any_bad) break;
+        const uint32_t n = g.n[axis];
+        line.resize(n);
+        line_ok.resize(n);
+        line_filled.resize(n);
+        const uint64_t inner = stride[axis], outer = g.cells() / (inner * n);
+        for (uint64_t o = 0; o < outer; ++o)
+            for (uint64_t in = 0; in < inner; ++in) {
+                const uint64_t base = o * n * inner + in;
+                for (int c = 0; c < C; ++c) {
+                    bool need = false;
+                    for (uint32_t p = 0; p < n; ++p) {
+                        uint64_t k = (base + p * inner) * C + c;
+                        line[p] = v[k];
+                        line_ok[p] = ok[k];
+                        need |= !ok[k];
+                    }
+                    if (!need) continue;
+                    fill_line(line, line_ok, line_filled, g.is_periodic(axis), scratch);
+                    for (uint32_t p = 0; p < n; ++p)
+                        if (line_filled[p]) v[(base + p * inner) * C + c] = float(line[p]);
+                }
+            }
+    }
+    for (size_t k = 0; k < v.size(); ++k)
+        if (!valid_value(v[k])) {
+            unravel(g, k / C, idx);
+            throw_table_error(name, k * 4,
+                              "at least one valid value in channel " + std::to_string(k % C) + " to fill " +
+                                  cell_label(g, idx, int(k % C)) + " from",
+                              "none");
+        }
+    return bad_cells;
+}
+
+ReciprocityStats reciprocity(const TableGrid& grid) { return reciprocity_of(grid.geom, grid.values.data()); }
+
+ReciprocityStats reciprocity(const BrdfTable& table) {
+    return reciprocity_of(table.geometry(), table.values().data());
+}
+
+std::unique_ptr<BrdfTable> build_table(TableGrid grid, const BuildOptions& opt) {
+    TableInfo info;
+    info.description = opt.description;
+    info.nodata_filled = opt.prior_nodata_filled + apply_nodata_policy(grid, opt.nodata, opt.name);
+    TableGeometry g = grid.geom;
+    if (!opt.fold) return std::make_unique<BrdfTable>(g, std::move(grid.values), std::move(info), opt.interp);
+
+    if (g.layout != TableLayout::Isotropic || g.n[0] != g.n[1])
+        throw std::invalid_argument("fold: only isotropic tables with equal theta_i/theta_r steps can be folded");
+    ReciprocityStats rs = reciprocity(grid);
+    if (rs.max_abs > 0) {
+        if (!info.description.empty()) info.description += "; ";
+        info.description += "symmetrised when folded (reciprocity error max " + fmt_g(rs.max_abs) + " 1/sr, rel " +
+                            fmt_g(rs.max_rel) + ")";
+    }
+    g.folded = true;
+    const uint32_t n = g.n[0], np = g.n[2];
+    const int C = g.channels;
+    std::vector<float> folded;
+    folded.reserve(g.values());
+    for (uint32_t i = 0; i < n; ++i)
+        for (uint32_t r = i; r < n; ++r)
+            for (uint32_t p = 0; p < np; ++p)
+                for (int c = 0; c < C; ++c) {
+                    float a = grid.values[grid.cell(i, r, p) * C + c], b = grid.values[grid.cell(r, i, p) * C + c];
+                    folded.push_back(a == b ? a : float(0.5 * (double(a) + double(b))));
+                }
+    grid.values.clear();
+    grid.values.shrink_to_fit();
+    return std::make_unique<BrdfTable>(g, std::move(folded), std::move(info), opt.interp);
+}
+
+TableGrid unfold(const BrdfTable& table) {
+    TableGrid grid(table.geometry());
+    const TableGeometry& g = grid.geom;
+    const int C = g.channels;
+    uint32_t idx[4];
+    for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
+        unravel(g, cell, idx);
+        for (int c = 0; c < C; ++c) grid.values[cell * C + c] = table.node(idx[0], idx[1], idx[2], idx[3], c);
+    }
+    return grid;
+}
+
+TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
+    TableGrid grid(geometry);
+    const TableGeometry& g = grid.geom;
+    const int C = g.channels;
+    const bool iso = g.layout == TableLayout::Isotropic;
+    uint32_t idx[4];
+    for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
+        unravel(g, cell, idx);
+        Vec3 wi, wo;
+        if (iso) {
+            wi = spherical_direction(g.axis_deg(0, idx[0]) * kDeg, 0.0);
+            wo = spherical_direction(g.axis_deg(1, idx[1]) * kDeg, g.axis_deg(2, idx[2]) * kDeg);
+        } else {
+            wi = spherical_direction(g.axis_deg(0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg);
+            wo = spherical_direction(g.axis_deg(2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg);
+        }
+        Rgb v = brdf.f(wo, wi);
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(v[c]) || v[c] < 0)
+                throw std::runtime_error("tabulate: " + brdf.describe() + " returned " + fmt_g(v[c]) + " at " +
+                                         cell_label(g, idx, c));
+        if (C == 1)
+            grid.values[cell] = float(v.average());
+        else
+            for (int c = 0; c < 3; ++c) grid.values[cell * 3 + c] = float(v[c]);
+    }
+    return grid;
+}
+
+TableGrid resample(const BrdfTable& src, const TableGeometry& geometry, Interp interp) {
+    if (src.anisotropic() && geometry.layout == TableLayout::Isotropic)
+        throw std::invalid_argument("resample: an anisotropic table cannot be resampled to the isotropic layout");
+    TableGrid grid(geometry);
+    const TableGeometry& g = grid.geom;
+    const int C = g.channels;
+    uint32_t idx[4];
+    for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
+        unravel(g, cell, idx);
+        Rgb v = g.layout == TableLayout::Isotropic
+                    ? src.eval_iso(g.axis_deg(0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg,
+                                   g.axis_deg(2, idx[2]) * kDeg, interp)
+                    : src.eval_aniso(g.axis_deg(0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg,
+                                     g.axis_deg(2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg, interp);
+        if (C == 1)
+            grid.values[cell] = float(src.geometry().channels == 1 ? v.r : v.average());
+        else
+            for (int c = 0; c < 3; ++c) grid.values[cell * 3 + c] = float(v[c]);
+    }
+    return grid;
+}
+
+uint64_t simulate_measurement(TableGrid& grid, const MeasurementSim& sim) {
+    if (!(sim.noise >= 0) || !(sim.missing >= 0 && sim.missing <= 1))
+        throw std::invalid_argument("measurement simulation: noise must be >= 0 and missing in [0, 1]");
+    SplitMix64 rng{sim.seed};
+    // Multiplicative gaussian noise; a factor below 0 (a > 1/noise sigma event) is clamped,
+    // since a gonioreflectometer reports no negative reflectance for a lit sample.
+    for (float& x : grid.values) x = float(double(x) * std::max(0.0, 1.0 + sim.noise * rng.normal()));
+    const int C = grid.geom.channels;
+    uint64_t missing = 0;
+    for (uint64_t cell = 0, cells = grid.geom.cells(); cell < cells; ++cell)
+        if (rng.uniform() < sim.missing) {
+            for (int c = 0; c < C; ++c) grid.values[cell * C + c] = std::numeric_limits<float>::quiet_NaN();
+            ++missing;
+        }
+    return missing;
+}
+
+CheckReport check_table(const BrdfTable& table, const std::vector<double>& theta_i_deg, double albedo_tolerance) {
+    CheckReport r;
+    r.recip = reciprocity(table);
+    for (double t : theta_i_deg) {
+        r.theta_i_deg.push_back(t);
+        r.albedo.push_back(table.directional_albedo(t * kDeg));
+    }
+    const auto& nodes = table.albedo_nodes();
+    for (uint32_t i = 0; i < nodes.size(); ++i) {
+        double m = nodes[i].max_component();
+        if (table.geometry().channels == 1) m = nodes[i].r;
+        if (m > 1.0 + albedo_tolerance) ++r.albedo_nodes_over_one;
+        if (m > r.max_albedo) {
+            r.max_albedo = m;
+            r.max_albedo_theta_deg = table.geometry().axis_deg(0, i);
+        }
+    }
+    return r;
+}
+
+}  // namespace shading

@@ -1,0 +1,487 @@
+// brdftool: build, convert, inspect, check and plot tabulated BRDFs (.brdf files).
+// The logic lives in the shading library (table.h, merl.h); this file is argument
+// handling and printing. Exit status: 0 ok, 1 failure (bad data, failed check), 2 usage.
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "shading/merl.h"
+#include "shading/model_spec.h"
+#include "shading/table.h"
+
+using namespace shading;
+
+namespace {
+
+struct UsageError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+constexpr uint64_t kMaxTableBytes = uint64_t(2) << 30;  // same limit as the loader's default
+
+struct Command {
+    const char* name;
+    const char* synopsis;
+    const char* help;
+    std::set<std::string> value_opts;  // options taking a value
+    std::set<std::string> flag_opts;   // options without one
+    int min_pos, max_pos;              // positional argument count (-1: unbounded)
+    std::function<int(struct Args&)> run;
+};
+
+struct Args {
+    const Command* cmd = nullptr;
+    std::vector<std::string> pos;
+    std::map<std::string, std::string> opt;
+    std::set<std::string> flags;
+
+    bool has(const std::string& k) const { return opt.count(k) || flags.count(k); }
+    std::string str(const std::string& k, const std::string& def = "") const {
+        auto it = opt.find(k);
+        return it == opt.end() ? def : it->second;
+    }
+    double number(const std::string& k, double def) const {
+        auto it = opt.find(k);
+        if (it == opt.end()) return def;
+        char* end = nullptr;
+        double v = std::strtod(it->second.c_str(), &end);
+        if (it->second.empty() || *end != '\0' || !std::isfinite(v))
+            throw UsageError(k + ": not a number: '" + it->second + "'");
+        return v;
+    }
+    std::vector<double> list(const std::string& k, const std::vector<double>& def) const {
+        auto it = opt.find(k);
+        if (it == opt.end()) return def;
+        std::vector<double> out;
+        std::stringstream ss(it->second);
+        std::string item;
+        while (std::getline(ss, item, ',')) {
+            char* end = nullptr;
+            double v = std::strtod(item.c_str(), &end);
+            if (item.empty() || *end != '\0' || !std::isfinite(v))
+                throw UsageError(k + ": not a comma-separated list of numbers: '" + it->second + "'");
+            out.push_back(v);
+        }
+        if (out.empty()) throw UsageError(k + ": empty list");
+        return out;
+    }
+    std::string output() const {
+        std::string o = str("-o");
+        if (o.empty()) throw UsageError("missing -o OUTPUT");
+        return o;
+    }
+};
+
+std::string mb(uint64_t bytes) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.2f MB", double(bytes) / 1e6);
+    return buf;
+}
+
+std::string rgb_text(const Rgb& v, int channels) {
+    char buf[96];
+    if (channels == 1)
+        std::snprintf(buf, sizeof buf, "%.4f", v.r);
+    else
+        std::snprintf(buf, sizeof buf, "%.4f %.4f %.4f", v.r, v.g, v.b);
+    return buf;
+}
+
+int channels_opt(const Args& a, int def = 3) {
+    double c = a.number("--channels", def);
+    if (c != 1 && c != 3) throw UsageError("--channels: 1 or 3");
+    return int(c);
+}
+
+void guard_size(const TableGeometry& g) {
+    uint64_t bytes = g.values() * 4;
+    if (bytes > kMaxTableBytes)
+        throw UsageError("a " + g.describe() + " table would take " + mb(bytes) +
+                         " (limit 2 GiB); choose a coarser --step/--phi-step");
+}
+
+TableGeometry geometry_opts(const Args& a, bool anisotropic, double def_step) {
+    int ch = channels_opt(a);
+    double step = a.number("--step", def_step);
+    if (!anisotropic) {
+        if (a.has("--phi-step")) throw UsageError("--phi-step applies to --layout aniso only");
+        return TableGeometry::isotropic(step, ch);
+    }
+    return TableGeometry::anisotropic(step, a.number("--phi-step", step), ch);
+}
+
+std::string joined_spec(const Args& a) {
+    std::string spec;
+    for (const auto& p : a.pos) spec += (spec.empty() ? "" : " ") + p;
+    return spec;
+}
+
+BuildOptions build_opts(const Args& a, const std::string& name, const std::string& description) {
+    BuildOptions bo;
+    bo.nodata = parse_nodata_policy(a.str("--nodata", "fill"));
+    bo.fold = a.has("--fold");
+    bo.name = name;
+    bo.description = description;
+    return bo;
+}
+
+void report_written(const BrdfTable& t, const std::string& path) {
+    std::cout << path << ": " << t.geometry().describe() << ", " << mb(t.values().size() * 4) << " payload";
+    if (t.info().nodata_filled) std::cout << ", " << t.info().nodata_filled << " no-data cells filled";
+    std::cout << "\n";
+}
+
+// ---------------------------------------------------------------- commands
+
+int cmd_tabulate(Args& a) {
+    std::string spec = joined_spec(a);
+    BrdfPtr brdf = make_brdf(spec);
+    std::string layout = a.str("--layout", brdf->anisotropic() ? "aniso" : "iso");
+    if (layout != "iso" && layout != "aniso") throw UsageError("--layout: iso or aniso");
+    if (layout == "iso" && brdf->anisotropic())
+        throw UsageError("'" + spec + "' is anisotropic: an isotropic table would lose its azimuth (use --layout aniso)");
+    TableGeometry g = geometry_opts(a, layout == "aniso", layout == "aniso" ? 5.0 : 1.0);
+    guard_size(g);
+    const std::string out = a.output();
+    auto table = build_table(tabulate(*brdf, g), build_opts(a, out, "tabulate: " + brdf->describe()));
+    save_table_file(*table, out);
+    report_written(*table, out);
+    return 0;
+}
+
+int cmd_measured_like(Args& a) {
+    std::string spec = joined_spec(a);
+    BrdfPtr brdf = make_brdf(spec);
+    if (brdf->anisotropic()) throw UsageError("measured-like: isotropic models only");
+    TableGeometry g = geometry_opts(a, false, 1.0);
+    guard_size(g);
+    MeasurementSim sim;
+    sim.noise = a.number("--noise", sim.noise);
+    sim.missing = a.number("--missing", sim.missing);
+    double seed = a.number("--seed", 1);
+    if (seed < 0 || seed != std::floor(seed) || seed > 9007199254740992.0)
+        throw UsageError("--seed: a non-negative integer");
+    sim.seed = uint64_t(seed);
+    const std::string out = a.output();
+    TableGrid grid = tabulate(*brdf, g);
+    uint64_t missing = simulate_measurement(grid, sim);
+    char desc[256];
+    std::snprintf(desc, sizeof desc, "measured-like: %s, noise %g, missing %g (%llu cells), seed %llu",
+                  brdf->describe().c_str(), sim.noise, sim.missing, static_cast<unsigned long long>(missing),
+                  static_cast<unsigned long long>(sim.seed));
+    auto table = build_table(std::move(grid), build_opts(a, out, desc));
+    save_table_file(*table, out);
+    report_written(*table, out);
+    return 0;
+}
+
+int cmd_convert(Args& a) {
+    auto merl = MerlBrdf::load_file(a.pos[0]);
+    MerlConvertOptions o;
+    o.step_deg = a.number("--step", 1.0);
+    o.channels = channels_opt(a);
+    o.nodata = parse_nodata_policy(a.str("--nodata", "fill"));
+    o.fold = a.has("--fold");
+    guard_size(TableGeometry::isotropic(o.step_deg, o.channels));
+    const std::string out = a.output();
+    auto table = merl_to_table(*merl, o);
+    save_table_file(*table, out);
+    std::cout << merl->describe() << "\n";
+    report_written(*table, out);
+    return 0;
+}
+
+int cmd_resample(Args& a) {
+    auto src = load_table_file(a.pos[0]);
+    const TableGeometry& sg = src->geometry();
+    if (a.has("--fold") && a.has("--unfold")) throw UsageError("--fold and --unfold exclude each other");
+    TableGeometry g;
+    int ch = a.has("--channels") ? channels_opt(a) : sg.channels;
+    if (!a.has("--step")) throw UsageError("missing --step S");
+    double step = a.number("--step", 1.0);
+    if (sg.layout == TableLayout::Isotropic) {
+        if (a.has("--phi-step")) throw UsageError("--phi-step applies to anisotropic tables only");
+        g = TableGeometry::isotropic(step, ch);
+    } else {
+        g = TableGeometry::anisotropic(step, a.number("--phi-step", step), ch);
+    }
+    guard_size(g);
+    Interp interp = parse_interp(a.str("--interp", "linear"));
+    const std::string out = a.output();
+    BuildOptions bo;
+    bo.fold = a.has("--fold") || (sg.folded && !a.has("--unfold"));
+    bo.name = out;
+    bo.description = src->info().description + "; resampled (" + to_string(interp) + ") from " + sg.describe();
+    bo.prior_nodata_filled = src->info().nodata_filled;
+    auto table = build_table(resample(*src, g, interp), bo);
+    save_table_file(*table, out);
+    report_written(*table, out);
+    return 0;
+}
+
+void print_albedo(const BrdfTable& t, const std::vector<double>& thetas) {
+    std::cout << "directional albedo (integral of f cos over the hemisphere"
+              << (t.geometry().channels == 3 ? ", R G B" : "") << "):\n";
+    for (double th : thetas) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "  theta_i=%5.1f: ", th);
+        std::cout << buf << rgb_text(t.directional_albedo(th * kPi / 180), t.geometry().channels) << "\n";
+    }
+}
+
+const std::vector<double> kAlbedoThetas = {0, 15, 30, 45, 60, 75, 85, 89};
+
+int cmd_info(Args& a) {
+    const std::string path = a.pos[0];
+    std::vector<uint8_t> bytes = read_file_bytes(path);
+    TableHeader h = parse_table_header(bytes.data(), bytes.size(), path);
+    ValueScan scan = scan_table_values(bytes.data(), h);
+    std::cout << "file:        " << path << "\n"
+              << "format:      PVBRDF version " << h.version << ", " << mb(bytes.size()) << ", payload at offset "
+              << h.payload_offset << "\n"
+              << "geometry:    " << h.geom.describe() << "\n"
+              << "units:       1/sr, cos(theta_i) excluded\n";
+    char sum[32];
+    std::snprintf(sum, sizeof sum, "0x%016llx", static_cast<unsigned long long>(h.checksum));
+    std::cout << "checksum:    FNV-1a-64 " << sum << " (verified)\n"
+              << "no-data:     " << h.nodata_filled << " cells filled at conversion; payload holds " << scan.nan
+              << " NaN, " << scan.inf << " Inf, " << scan.negative << " negative values\n"
+              << "description: " << (h.description.empty() ? "(none)" : h.description) << "\n";
+    if (scan.inf) return 1;
+    LoadOptions lo;
+    lo.nodata = NoDataPolicy::Fill;
+    auto t = load_table(bytes.data(), bytes.size(), path, lo);
+    std::cout << "memory:      " << mb(t->bytes_used()) << " when loaded\n";
+    print_albedo(*t, kAlbedoThetas);
+    return 0;
+}
+
+int cmd_check(Args& a) {
+    const std::string path = a.pos[0];
+    std::vector<std::string> failures, warnings;
+    std::vector<uint8_t> bytes = read_file_bytes(path);
+    TableHeader h;
+    try {
+        h = parse_table_header(bytes.data(), bytes.size(), path);
+    } catch (const TableError& e) {
+        std::cout << "FAIL " << e.what() << "\n";
+        return 1;
+    }
+    std::cout << path << ": " << h.geom.describe() << "\n";
+    ValueScan scan = scan_table_values(bytes.data(), h);
+    std::cout << "values: " << scan.nan << " NaN, " << scan.inf << " Inf, " << scan.negative
+              << " negative; no-data cells filled at conversion: " << h.nodata_filled << "\n";
+    if (scan.inf) {
+        std::cout << "FAIL " << scan.inf << " infinite values (first at offset " << scan.first_bad_offset << ")\n";
+        return 1;
+    }
+    if (scan.nan || scan.negative)
+        failures.push_back(std::to_string(scan.nan + scan.negative) + " no-data values (NaN or negative) in the payload, first at offset " +
+                           std::to_string(scan.first_bad_offset) + " (statistics below use the fill policy)");
+    LoadOptions lo;
+    lo.nodata = NoDataPolicy::Fill;
+    auto t = load_table(bytes.data(), bytes.size(), path, lo);
+    const double tol = a.number("--albedo-tol", 1e-3);
+    CheckReport r = check_table(*t, a.list("--theta-i", kAlbedoThetas), tol);
+    const TableGeometry& g = t->geometry();
+    if (g.folded) {
+        std::cout << "reciprocity: exact (reciprocity-folded storage)\n";
+    } else if (!r.recip.applicable) {
+        std::cout << "reciprocity: not checked (theta_i and theta_r grids differ)\n";
+    } else {
+        char buf[256];
+        std::snprintf(buf, sizeof buf, "reciprocity: |f(i,r) - f(r,i)| max %.4g 1/sr (%.3g%% of max f), rms %.4g 1/sr",
+                      r.recip.max_abs, 100 * r.recip.max_rel, r.recip.rms_abs);
+        std::cout << buf << "\n";
+        if (a.has("--max-recip") && r.recip.max_rel > a.number("--max-recip", 0))
+            failures.push_back("reciprocity error " + std::to_string(r.recip.max_rel) + " above --max-recip");
+    }
+    std::cout << "directional albedo" << (g.channels == 3 ? " (R G B)" : "") << ":\n";
+    for (size_t k = 0; k < r.albedo.size(); ++k) {
+        char buf[32];
+        std::snprintf(buf, sizeof buf, "  theta_i=%5.1f: ", r.theta_i_deg[k]);
+        std::cout << buf << rgb_text(r.albedo[k], g.channels) << "\n";
+    }
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "max albedo %.4f at theta_i=%g; theta_i nodes with albedo > 1 + %g: %u of %zu",
+                  r.max_albedo, r.max_albedo_theta_deg, tol, r.albedo_nodes_over_one, t->albedo_nodes().size());
+    std::cout << buf << "\n";
+    if (r.albedo_nodes_over_one) {
+        std::string m = std::to_string(r.albedo_nodes_over_one) + " theta_i nodes reflect more energy than they receive";
+        (a.has("--allow-energy-gain") ? warnings : failures).push_back(m);
+    }
+    for (const auto& w : warnings) std::cout << "WARN " << w << "\n";
+    for (const auto& f : failures) std::cout << "FAIL " << f << "\n";
+    std::cout << (failures.empty() ? "OK\n" : "FAILED\n");
+    return failures.empty() ? 0 : 1;
+}
+
+int cmd_plot(Args& a) {
+    auto t = load_table_file(a.pos[0]);
+    if (t->anisotropic()) std::cerr << "brdftool plot: anisotropic table: plotting the phi_i = 0 slice\n";
+    PlotOptions po;
+    po.theta_i_deg = a.list("--theta-i", po.theta_i_deg);
+    po.log_scale = a.has("--log");
+    po.shared_scale = a.has("--shared-scale");
+    po.panel_radius = int(a.number("--size", po.panel_radius));
+    if (po.panel_radius < 40 || po.panel_radius > 2000) throw UsageError("--size: panel radius in [40, 2000] pixels");
+    const std::string out = a.output();
+    Image img = plot_incidence_plane(*t, po);
+    write_file_bytes(out, encode_png(img));
+    std::cout << out << ": " << img.width << "x" << img.height << " PNG, " << po.theta_i_deg.size() << " slices\n";
+    return 0;
+}
+
+std::string models_text() {
+    std::string s = "models (from make_brdf):\n";
+    try {
+        for (const ModelHelp& m : model_help()) {
+            s += "  " + m.name + ": " + m.summary + "\n";
+            std::stringstream keys(m.keys);
+            std::string line;
+            while (std::getline(keys, line)) s += "      " + line + "\n";
+        }
+    } catch (const std::exception& e) {
+        s += "  (unavailable: " + std::string(e.what()) + ")\n";
+    }
+    return s;
+}
+
+const std::vector<Command>& commands() {
+    static const std::vector<Command> cmds = {
+        {"tabulate", "tabulate SPEC... -o OUT.brdf [--step 1] [--fold] [--channels 3] [--layout iso|aniso] [--phi-step S]",
+         "Sample an analytic model (a make_brdf spec, e.g. 'lambert rho=0.5') at every node.\n"
+         "  --step S       node spacing in degrees (divides 90; default 1, anisotropic 5)\n"
+         "  --fold         store theta_i <= theta_r only (reciprocity), averaging f(i,r) and f(r,i)\n"
+         "  --channels N   1 (mean of R,G,B) or 3\n"
+         "  --layout L     iso (default for isotropic models) or aniso (4-D, absolute azimuths)\n"
+         "  --phi-step S   azimuth spacing of the anisotropic layout (divides 360; default --step)\n",
+         {"-o", "--step", "--channels", "--layout", "--phi-step", "--nodata"}, {"--fold"}, 1, -1, cmd_tabulate},
+        {"measured-like", "measured-like SPEC... -o OUT.brdf [--noise 0.02] [--missing 0.001] [--seed 1] [--step 1] [--nodata fill|reject] [--fold]",
+         "Simulate a gonioreflectometer: the model sampled at every node, each value times\n"
+         "max(0, 1 + noise*N(0,1)), each cell missing (no data) with probability --missing,\n"
+         "then the no-data policy (fill: from the nearest valid nodes along phi, then theta).\n"
+         "Deterministic for a --seed. Measured data is not reciprocal: --fold symmetrises it.\n",
+         {"-o", "--step", "--channels", "--noise", "--missing", "--seed", "--nodata"}, {"--fold"}, 1, -1, cmd_measured_like},
+        {"convert", "convert IN.binary -o OUT.brdf [--step 1] [--nodata fill|reject] [--fold] [--channels 3]",
+         "Convert a MERL .binary (90x90x180 half/difference bins, scaled 1/1500, 1.15/1500,\n"
+         "1.66/1500) to an isotropic table: the reference bin lookup at every node.\n"
+         "  --nodata fill    fill nodes whose bin has no data (default)\n"
+         "  --nodata reject  fail on the first such node, naming the MERL sample's byte offset\n"
+         "  --fold           store theta_i <= theta_r only (lossless: MERL is reciprocal)\n",
+         {"-o", "--step", "--channels", "--nodata"}, {"--fold"}, 1, 1, cmd_convert},
+        {"resample", "resample IN.brdf -o OUT.brdf --step S [--phi-step S] [--interp linear|nearest] [--fold|--unfold] [--channels N]",
+         "Evaluate a table at the nodes of a new grid (same layout). Folding is kept unless\n"
+         "--unfold; --fold folds an unfolded table.\n",
+         {"-o", "--step", "--phi-step", "--interp", "--channels"}, {"--fold", "--unfold"}, 1, 1, cmd_resample},
+        {"info", "info FILE.brdf",
+         "Print the header (geometry, checksum, description, no-data count), the memory a\n"
+         "loaded table takes, and its directional albedo at a few theta_i.\n",
+         {}, {}, 1, 1, cmd_info},
+        {"check", "check FILE.brdf [--theta-i 0,15,...] [--albedo-tol 1e-3] [--allow-energy-gain] [--max-recip REL]",
+         "Validate a table: header and checksum, NaN/Inf/negative values (fail), reciprocity\n"
+         "error max/rms (fail above --max-recip, relative to max f), directional albedo at\n"
+         "--theta-i, theta_i nodes whose albedo exceeds 1 + tol (fail unless --allow-energy-gain).\n"
+         "Exit status 1 on any failure.\n",
+         {"--theta-i", "--albedo-tol", "--max-recip"}, {"--allow-energy-gain"}, 1, 1, cmd_check},
+        {"plot", "plot FILE.brdf -o OUT.png [--theta-i 0,30,60,75] [--log] [--shared-scale] [--size 180]",
+         "Polar slices in the plane of incidence, one panel per theta_i: light from the left\n"
+         "(orange), radius = f / panel max (or log10, 3 decades, with --log) at angle theta_r\n"
+         "from the normal, mirror side on the right. R, G, B curves (black for one channel).\n",
+         {"-o", "--theta-i", "--size"}, {"--log", "--shared-scale"}, 1, 1, cmd_plot},
+    };
+    return cmds;
+}
+
+void print_usage(std::ostream& os) {
+    os << "usage: brdftool COMMAND [ARGS]   (brdftool COMMAND --help for details)\n\ncommands:\n";
+    for (const Command& c : commands()) os << "  " << c.synopsis << "\n";
+}
+
+void print_help(const Command& c) {
+    std::cout << "usage: brdftool " << c.synopsis << "\n\n" << c.help;
+    if (std::string(c.name) == "tabulate" || std::string(c.name) == "measured-like") std::cout << "\n" << models_text();
+}
+
+Args parse_args(const Command& c, int argc, char** argv) {
+    Args a;
+    a.cmd = &c;
+    for (int k = 2; k < argc; ++k) {
+        std::string s = argv[k];
+        if (s.size() > 1 && s[0] == '-' && !(s.size() > 1 && (std::isdigit(static_cast<unsigned char>(s[1])) || s[1] == '.'))) {
+            std::string key = s, value;
+            bool inline_value = false;
+            if (auto eq = s.find('='); eq != std::string::npos && s.rfind("--", 0) == 0) {
+                key = s.substr(0, eq);
+                value = s.substr(eq + 1);
+                inline_value = true;
+            }
+            if (key == "--output") key = "-o";
+            if (c.flag_opts.count(key)) {
+                if (inline_value) throw UsageError(key + " takes no value");
+                a.flags.insert(key);
+            } else if (c.value_opts.count(key)) {
+                if (!inline_value) {
+                    if (k + 1 >= argc) throw UsageError(key + " needs a value");
+                    value = argv[++k];
+                }
+                a.opt[key] = value;
+            } else {
+                throw UsageError("unknown option " + key);
+            }
+        } else {
+            a.pos.push_back(s);
+        }
+    }
+    if (int(a.pos.size()) < c.min_pos) throw UsageError("missing argument");
+    if (c.max_pos >= 0 && int(a.pos.size()) > c.max_pos) throw UsageError("unexpected argument '" + a.pos.back() + "'");
+    return a;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    if (argc < 2) {
+        print_usage(std::cerr);
+        return 2;
+    }
+    const std::string name = argv[1];
+    if (name == "--help" || name == "-h" || name == "help") {
+        print_usage(std::cout);
+        return 0;
+    }
+    const Command* cmd = nullptr;
+    for (const Command& c : commands())
+        if (name == c.name) cmd = &c;
+    if (!cmd) {
+        std::cerr << "brdftool: unknown command '" << name << "'\n";
+        print_usage(std::cerr);
+        return 2;
+    }
+    for (int k = 2; k < argc; ++k)
+        if (std::string(argv[k]) == "--help" || std::string(argv[k]) == "-h") {
+            print_help(*cmd);
+            return 0;
+        }
+    try {
+        Args a = parse_args(*cmd, argc, argv);
+        return cmd->run(a);
+    } catch (const UsageError& e) {
+        std::cerr << "brdftool " << name << ": " << e.what() << "\nusage: brdftool " << cmd->synopsis << "\n";
+        return 2;
+    } catch (const std::invalid_argument& e) {  // bad spec, step, policy...
+        std::cerr << "brdftool " << name << ": " << e.what() << "\n";
+        return 2;
+    } catch (const std::exception& e) {  // TableError and other runtime failures
+        std::cerr << "brdftool " << name << ": " << e.what() << "\n";
+        return 1;
+    }
+}
