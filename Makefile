@@ -86,7 +86,7 @@ $(UPSTREAM_FILES) &: upstream.sha256 | $(STAMPS)/deps
 # Pristine tree: Debian's source with Debian's 19 patches applied (dpkg-source -x).
 $(POVDIR)/.unpacked: $(UPSTREAM_FILES)
 	rm -rf $(POVDIR) $(POVDIR).tmp
-	dpkg-source --no-check -x $(CACHE)/$(DSC) $(POVDIR).tmp >/dev/null
+	dpkg-source --no-check --no-copy -x $(CACHE)/$(DSC) $(POVDIR).tmp >/dev/null
 	mv $(POVDIR).tmp $(POVDIR)
 	@touch $@
 
@@ -107,8 +107,16 @@ $(LIBSHADING): $(SHADING_BUILD)/build.ninja FORCE
 	cmake --build $(SHADING_BUILD) -j $(JOBS) | { grep -v '^ninja: no work to do' || true; }
 
 # ---------------------------------------------------------------- the fork
-# Configure once per unpack (our patches touch no build files; the flags live here).
-$(POVDIR)/.configured: $(POVDIR)/.unpacked Makefile VERSION | $(POVDIR)/.patched $(LIBSHADING)
+# The configure command line, kept in a file that changes only when the flags change, so
+# editing an unrelated part of this Makefile does not reconfigure (and rebuild) POV-Ray.
+CONFIGURE_ARGS_FILE := $(BUILD)/configure-args
+$(CONFIGURE_ARGS_FILE): FORCE
+	@mkdir -p $(@D)
+	@printf '%s\n' '$(subst ','\'',$(POV_CONFIGURE_ARGS))' > $@.tmp
+	@if cmp -s $@.tmp $@; then rm $@.tmp; else mv $@.tmp $@; fi
+
+# Configure once per unpack or change of flags (our patches touch no build files).
+$(POVDIR)/.configured: $(POVDIR)/.unpacked $(CONFIGURE_ARGS_FILE) | $(POVDIR)/.patched $(LIBSHADING)
 	cd $(POVDIR)/unix/config && for ax in *.m4; do \
 	  if [ ! -h "$$ax" ] && [ -f "/usr/share/aclocal/$$ax" ]; then mv "$$ax" "$$ax.dist"; ln -s "/usr/share/aclocal/$$ax"; fi; done
 	if [ -d $(POVDIR)/libraries ]; then mv $(POVDIR)/libraries $(POVDIR)/libraries.donotuse; fi

@@ -6,7 +6,7 @@ top=$(cd "$(dirname "$0")/.." && pwd)
 dsc=$(readlink -f "$1")
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-dpkg-source --no-check -x "$dsc" "$tmp/povray" >/dev/null
+dpkg-source --no-check --no-copy -x "$dsc" "$tmp/povray" >/dev/null
 cd "$tmp/povray"
 export QUILT_PATCHES="$top/patches" QUILT_PC=.pc-brdf
 n=0; bad=0
