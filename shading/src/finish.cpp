@@ -1,7 +1,10 @@
 #include "shading/finish.h"
 
+#include <algorithm>
 #include <array>
 #include <atomic>
+#include <cmath>
+#include <map>
 #include <mutex>
 #include <stdexcept>
 #include <vector>
@@ -108,6 +111,145 @@ Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_
                                                   : Frame::from_normal(n);
     Rgb w = pov_weight(*model.brdf, frame.to_local(to_eye), frame.to_local(to_light)) * model.scale;
     return model.tint ? w * pigment : w;
+}
+
+Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment) {
+    double c = dot(n, to_light);
+    if (!(c > 0)) return Rgb(0.0);
+    Rgb w = finish_model_albedo(model, c) * model.scale * c;
+    return model.tint ? w * pigment : w;
+}
+
+Rgb finish_indirect_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment) {
+    double c = dot(n, to_eye);
+    if (!(c > 0)) return Rgb(0.0);
+    Rgb w = finish_model_albedo(model, c) * model.scale;
+    return model.tint ? w * pigment : w;
+}
+
+Rgb finish_model_albedo(const FinishModel& model, double cos_theta) {
+    const std::vector<Rgb>& a = model.albedo;
+    if (a.empty()) return Rgb(0.0);
+    double x = std::acos(std::clamp(cos_theta, 0.0, 1.0)) / (kPi / 2) * double(a.size() - 1);
+    std::size_t i = std::min(std::size_t(x), a.size() - 2);
+    double t = x - double(i);
+    return a[i] * (1.0 - t) + a[i + 1] * t;
+}
+
+namespace {
+
+class TableView final : public Brdf {
+public:
+    TableView(std::shared_ptr<const BrdfTable> t, Interp i) : table_(std::move(t)), interp_(i) {}
+    Rgb f(const Vec3& wo, const Vec3& wi) const override { return table_->f(wo, wi, interp_); }
+    bool anisotropic() const override { return table_->anisotropic(); }
+    std::string describe() const override { return table_->describe() + " interp=" + to_string(interp_); }
+    const BrdfTable& table() const { return *table_; }
+
+private:
+    std::shared_ptr<const BrdfTable> table_;
+    Interp interp_;
+};
+
+// Cosine-weighted stratified quadrature of the directional albedo at theta_o: directions
+// wi = (sqrt(u) cos p, sqrt(u) sin p, sqrt(1 - u)) have pdf cos/pi, so a = pi * mean(f).
+Rgb quadrature_albedo(const Brdf& b, double theta_o) {
+    constexpr int nu = 128, np = 256;
+    const Vec3 wo(std::sin(theta_o), 0.0, std::cos(theta_o));
+    Rgb sum;
+    for (int i = 0; i < nu; ++i) {
+        double u = (i + 0.5) / nu, r = std::sqrt(u), z = std::sqrt(1.0 - u);
+        for (int j = 0; j < np; ++j) {
+            double p = (j + 0.5) * (2.0 * kPi / np);
+            sum += b.f(wo, Vec3(r * std::cos(p), r * std::sin(p), z));
+        }
+    }
+    return sum * (kPi / (nu * np));
+}
+
+}  // namespace
+
+BrdfPtr table_brdf(std::shared_ptr<const BrdfTable> table, Interp interp) {
+    if (!table) throw std::invalid_argument("table_brdf: no table");
+    return std::make_shared<TableView>(std::move(table), interp);
+}
+
+std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf) {
+    if (!brdf) throw std::invalid_argument("make_finish_model: no BRDF");
+    auto m = std::make_shared<FinishModel>();
+    m->albedo.resize(FinishModel::kAlbedoNodes);
+    const BrdfTable* table = dynamic_cast<const BrdfTable*>(brdf.get());
+    if (auto view = dynamic_cast<const TableView*>(brdf.get())) table = &view->table();
+    for (int k = 0; k < FinishModel::kAlbedoNodes; ++k) {
+        // The grazing node itself is degenerate (wo in the surface); use 89.9 deg there.
+        double th = std::min(k * (kPi / 2) / (FinishModel::kAlbedoNodes - 1), 89.9 * kPi / 180);
+        m->albedo[k] = table ? table->directional_albedo(th) : quadrature_albedo(*brdf, th);
+    }
+    m->brdf = std::move(brdf);
+    return m;
+}
+
+// ---------------------------------------------------------------- shared tables
+
+namespace {
+
+struct TableCache {
+    std::mutex mutex;
+    std::map<std::string, std::weak_ptr<const BrdfTable>> tables;
+    SharedTableStats stats;
+};
+
+TableCache& table_cache() {
+    static TableCache c;
+    return c;
+}
+
+}  // namespace
+
+std::shared_ptr<const BrdfTable> shared_table(const std::string& key,
+                                              const std::function<std::unique_ptr<BrdfTable>()>& load) {
+    TableCache& c = table_cache();
+    {
+        std::lock_guard<std::mutex> lock(c.mutex);
+        auto it = c.tables.find(key);
+        if (it != c.tables.end()) {
+            if (auto t = it->second.lock()) {
+                ++c.stats.reuses;
+                return t;
+            }
+        }
+    }
+    // Load outside the lock (it reads a file); a concurrent load of the same key keeps the first.
+    std::unique_ptr<BrdfTable> fresh = load();
+    if (!fresh) throw std::invalid_argument("shared_table: loader returned no table for " + key);
+    const std::size_t bytes = fresh->bytes_used();
+    std::lock_guard<std::mutex> lock(c.mutex);
+    auto& slot = c.tables[key];
+    if (auto t = slot.lock()) {
+        ++c.stats.reuses;
+        return t;
+    }
+    // The deleter keeps the statistics true when the last finish lets go.
+    std::shared_ptr<const BrdfTable> t(fresh.release(), [bytes](const BrdfTable* p) {
+        delete p;
+        TableCache& cc = table_cache();
+        std::lock_guard<std::mutex> l(cc.mutex);
+        --cc.stats.live_tables;
+        cc.stats.live_bytes -= bytes;
+    });
+    slot = t;
+    ++c.stats.loads;
+    ++c.stats.live_tables;
+    c.stats.live_bytes += bytes;
+    c.stats.peak_tables = std::max(c.stats.peak_tables, c.stats.live_tables);
+    c.stats.peak_bytes = std::max(c.stats.peak_bytes, c.stats.live_bytes);
+    return t;
+}
+
+SharedTableStats shared_table_stats() {
+    TableCache& c = table_cache();
+    std::lock_guard<std::mutex> lock(c.mutex);
+    return c.stats;
 }
 
 }  // namespace shading

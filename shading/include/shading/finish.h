@@ -5,10 +5,13 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "shading/brdf.h"
+#include "shading/table.h"
 
 namespace shading {
 
@@ -19,7 +22,35 @@ struct FinishModel {
     Vec3 tangent{1, 0, 0};   // world-space tangent hint for anisotropic models (see Frame)
     std::string source;      // what the user wrote (file name or model spec), for messages/statistics
     std::size_t bytes = 0;   // memory owned by the model but not counted elsewhere (tables report their own)
+    // Directional albedo a(theta) = integral of f cos over the hemisphere, at kAlbedoNodes
+    // equally spaced theta in [0, 90] deg (scale and tint not applied). Filled by
+    // make_finish_model; used for indirect light and for lights POV gives no highlight.
+    std::vector<Rgb> albedo;
+    static constexpr int kAlbedoNodes = 91;
 };
+
+// A finish model around `brdf` with its directional albedo computed: a table's own
+// (BrdfTable::directional_albedo), otherwise a cosine-weighted quadrature of the model
+// (128 x 256 stratified directions per node: < 0.2 % for lobes wider than ~3 deg).
+std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf);
+
+// The model's directional albedo at cos(theta) (linear between nodes; scale/tint not applied).
+Rgb finish_model_albedo(const FinishModel& model, double cos_theta);
+
+// A table as a Brdf with its own interpolation choice, so finishes that name the same file
+// with different `interpolate` settings share one table.
+BrdfPtr table_brdf(std::shared_ptr<const BrdfTable> table, Interp interp);
+
+// Tables shared by every finish (and thread) that names the same key (the resolved path):
+// `load` runs only when no live table has that key; the table lives while a finish holds it.
+std::shared_ptr<const BrdfTable> shared_table(const std::string& key,
+                                              const std::function<std::unique_ptr<BrdfTable>()>& load);
+struct SharedTableStats {
+    std::size_t live_tables = 0, live_bytes = 0;  // now
+    std::size_t peak_tables = 0, peak_bytes = 0;  // highest since the process started
+    std::size_t loads = 0, reuses = 0;            // files read, and requests served from memory
+};
+SharedTableStats shared_table_stats();
 
 // Counted registry, process-wide. register returns a handle > 0 holding one reference.
 // addref/release accept 0 (no model) as a no-op, so FINISH copies need no special case.
@@ -35,5 +66,13 @@ std::size_t finish_model_live_count();
 // space). Applies pov_weight() (pi * f * cos_i), the user scale and the optional tint.
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment);
+
+// Lights for which POV computes no highlight (radiosity gather rays, fill lights): the model
+// acts as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos.
+Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment);
+
+// Indirect (radiosity) light: uniform incident light reflects a(theta_eye) of it, so POV's
+// ambient colour is multiplied by the directional albedo towards the eye (times scale, tint).
+Rgb finish_indirect_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment);
 
 }  // namespace shading

@@ -1,0 +1,161 @@
+// The adapter-facing finish layer: POV weights, albedo for indirect light, shared tables,
+// the counted handle registry.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+#include "shading/finish.h"
+#include "shading/model_spec.h"
+#include "shading/models.h"
+#include "shading/table.h"
+
+using namespace shading;
+
+namespace {
+
+std::unique_ptr<BrdfTable> lambert_table(double rho, double step = 5.0) {
+    Lambert l{Rgb(rho)};
+    BuildOptions opt;
+    return build_table(tabulate(l, TableGeometry::isotropic(step)), opt);
+}
+
+}  // namespace
+
+TEST(Finish, LambertWeightIsPovDiffuse) {
+    // POV's missing 1/pi: a Lambert BRDF rho/pi contributes rho * cos(theta_l), as `diffuse rho`.
+    auto m = make_finish_model(std::make_shared<Lambert>(Rgb(0.2, 0.5, 0.8)));
+    Vec3 n = normalize(Vec3(0.3, -0.2, 1.0));
+    Vec3 eye = normalize(Vec3(-0.5, 0.1, 1.0)), light = normalize(Vec3(0.7, 0.4, 0.6));
+    Rgb w = finish_light_weight(*m, n, eye, light, Rgb(1.0));
+    double c = dot(n, light);
+    EXPECT_NEAR(w.r, 0.2 * c, 1e-14);
+    EXPECT_NEAR(w.g, 0.5 * c, 1e-14);
+    EXPECT_NEAR(w.b, 0.8 * c, 1e-14);
+    // Light below the surface or eye below: nothing.
+    EXPECT_EQ(finish_light_weight(*m, n, eye, -light, Rgb(1.0)).max_component(), 0.0);
+    EXPECT_EQ(finish_light_weight(*m, n, -eye, light, Rgb(1.0)).max_component(), 0.0);
+}
+
+TEST(Finish, ScaleAndTint) {
+    auto m = make_finish_model(std::make_shared<Lambert>(Rgb(0.5)));
+    m->scale = Rgb(2.0, 1.0, 0.5);
+    Vec3 n(0, 0, 1), v(0, 0, 1), l(0, 0, 1);
+    Rgb w = finish_light_weight(*m, n, v, l, Rgb(0.1, 0.2, 0.3));
+    EXPECT_NEAR(w.r, 1.0, 1e-14);  // no tint: pigment ignored
+    m->tint = true;
+    w = finish_light_weight(*m, n, v, l, Rgb(0.1, 0.2, 0.3));
+    EXPECT_NEAR(w.r, 0.1, 1e-14);
+    EXPECT_NEAR(w.g, 0.1, 1e-14);
+    EXPECT_NEAR(w.b, 0.075, 1e-14);
+}
+
+TEST(Finish, AlbedoOfLambertIsRho) {
+    // Cosine-weighted quadrature is exact for a constant BRDF.
+    auto m = make_finish_model(std::make_shared<Lambert>(Rgb(0.7)));
+    ASSERT_EQ(m->albedo.size(), size_t(FinishModel::kAlbedoNodes));
+    for (const Rgb& a : m->albedo) EXPECT_NEAR(a.g, 0.7, 1e-12);
+    // Indirect light: POV's ambient colour times rho, like `diffuse 0.7`.
+    Vec3 n(0, 0, 1);
+    EXPECT_NEAR(finish_indirect_weight(*m, n, normalize(Vec3(1, 0, 1)), Rgb(1.0)).r, 0.7, 1e-12);
+    // Lights POV gives no highlight: Lambert of the albedo, 0.7 cos.
+    Vec3 l = normalize(Vec3(0, 1, 2));
+    EXPECT_NEAR(finish_diffuse_light_weight(*m, n, l, Rgb(1.0)).b, 0.7 * l.z, 1e-12);
+}
+
+TEST(Finish, AlbedoOfMicrofacetFollowsFresnel) {
+    // A smooth-ish dielectric microfacet lobe: albedo grows toward grazing (Fresnel), and
+    // near normal it is about F0 = 0.04 (minus a little shadowing).
+    auto m = make_finish_model(make_brdf("microfacet d=tr m=0.2 f=dielectric eta=1.5"));
+    Rgb a0 = finish_model_albedo(*m, 1.0), a80 = finish_model_albedo(*m, std::cos(80 * kPi / 180));
+    EXPECT_NEAR(a0.r, 0.04, 0.004);
+    EXPECT_GT(a80.r, 2 * a0.r);
+    EXPECT_LT(a80.r, 1.0);
+}
+
+TEST(Finish, AlbedoOfTableUsesTheTable) {
+    std::shared_ptr<const BrdfTable> t = lambert_table(0.4);
+    auto m = make_finish_model(table_brdf(t, Interp::Linear));
+    for (double c : {1.0, 0.5, 0.1}) EXPECT_NEAR(finish_model_albedo(*m, c).r, 0.4, 2e-3) << c;
+}
+
+TEST(Finish, TableViewKeepsItsOwnInterpolation) {
+    auto grid = tabulate(*make_brdf("phong_normalized ks=1 n=20"), TableGeometry::isotropic(10.0));
+    std::shared_ptr<const BrdfTable> t = build_table(grid, BuildOptions{});
+    BrdfPtr nearest = table_brdf(t, Interp::Nearest), linear = table_brdf(t, Interp::Linear);
+    // Between nodes the two differ; at a node they agree.
+    Vec3 wo = spherical_direction(25 * kPi / 180, 0), wi = spherical_direction(33 * kPi / 180, kPi);
+    EXPECT_NE(nearest->f(wo, wi).r, linear->f(wo, wi).r);
+    Vec3 no = spherical_direction(20 * kPi / 180, 0), ni = spherical_direction(30 * kPi / 180, kPi);
+    EXPECT_NEAR(nearest->f(no, ni).r, linear->f(no, ni).r, 1e-6 * linear->f(no, ni).r);
+}
+
+TEST(SharedTable, LoadsOncePerKeyAndFreesWithTheLastUser) {
+    SharedTableStats s0 = shared_table_stats();
+    int calls = 0;
+    auto loader = [&] {
+        ++calls;
+        return lambert_table(0.5);
+    };
+    auto a = shared_table("test:/tables/a.brdf", loader);
+    auto b = shared_table("test:/tables/a.brdf", loader);
+    auto c = shared_table("test:/tables/c.brdf", loader);
+    EXPECT_EQ(calls, 2);
+    EXPECT_EQ(a.get(), b.get());
+    EXPECT_NE(a.get(), c.get());
+    SharedTableStats s1 = shared_table_stats();
+    EXPECT_EQ(s1.live_tables, s0.live_tables + 2);
+    EXPECT_EQ(s1.live_bytes, s0.live_bytes + a->bytes_used() + c->bytes_used());
+    EXPECT_EQ(s1.loads, s0.loads + 2);
+    EXPECT_EQ(s1.reuses, s0.reuses + 1);
+    EXPECT_GE(s1.peak_bytes, s1.live_bytes);
+    a.reset();
+    b.reset();
+    c.reset();
+    SharedTableStats s2 = shared_table_stats();
+    EXPECT_EQ(s2.live_tables, s0.live_tables);
+    EXPECT_EQ(s2.live_bytes, s0.live_bytes);
+    // Gone: the next request loads again.
+    auto d = shared_table("test:/tables/a.brdf", loader);
+    EXPECT_EQ(calls, 3);
+}
+
+TEST(SharedTable, LoaderErrorsPropagateAndRegisterNothing) {
+    SharedTableStats s0 = shared_table_stats();
+    EXPECT_THROW(shared_table("test:/broken", []() -> std::unique_ptr<BrdfTable> {
+                     throw TableError("broken: offset 0: expected magic, found junk");
+                 }),
+                 TableError);
+    EXPECT_EQ(shared_table_stats().live_tables, s0.live_tables);
+}
+
+TEST(FinishRegistry, HandlesAreCountedAndLookupsLockFree) {
+    std::size_t live0 = finish_model_live_count();
+    int h = finish_model_register(make_finish_model(std::make_shared<Lambert>(Rgb(0.5))));
+    ASSERT_GT(h, 0);
+    EXPECT_EQ(finish_model_live_count(), live0 + 1);
+    finish_model_addref(h);  // a copied FINISH
+    finish_model_release(h);
+    ASSERT_NE(finish_model_get(h), nullptr);
+    // Many readers while the parser registers more models.
+    std::vector<std::thread> readers;
+    std::atomic<int> bad{0};
+    for (int k = 0; k < 4; ++k)
+        readers.emplace_back([&] {
+            for (int i = 0; i < 20000; ++i)
+                if (finish_model_get(h) == nullptr) ++bad;
+        });
+    std::vector<int> more;
+    for (int i = 0; i < 5000; ++i)
+        more.push_back(finish_model_register(make_finish_model(std::make_shared<Lambert>(Rgb(0.1)))));
+    for (auto& t : readers) t.join();
+    EXPECT_EQ(bad.load(), 0);
+    for (int m : more) finish_model_release(m);
+    finish_model_release(h);
+    EXPECT_EQ(finish_model_get(h), nullptr);
+    EXPECT_EQ(finish_model_live_count(), live0);
+    finish_model_release(0);  // no model: a no-op
+    finish_model_addref(0);
+}
