@@ -100,6 +100,12 @@ def resolve_binary(which: Union[str, os.PathLike, Binary]) -> Binary:
     return Binary(path, flavour)
 
 
+def brdftool() -> Path:
+    """The shading library's ``brdftool`` (built by ``make``; ``BRDFTOOL`` overrides)."""
+    path = Path(os.environ.get("BRDFTOOL") or REPO_ROOT / "build" / "shading" / "brdftool")
+    return _check_executable(path, "brdftool", "BRDFTOOL", "Build it first with `make shading`.")
+
+
 def include_dirs() -> list[Path]:
     """Include directories to pass with ``+L``: ``POVRAY_INCLUDE`` entries, then the standard one.
 

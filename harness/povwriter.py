@@ -84,6 +84,30 @@ def block_keyword(name: str, value: Mapping[str, Any]) -> str:
     return f"{name} {{ " + " ".join(parts) + " }"
 
 
+def model_keyword(name: str, value: Mapping[str, Any]) -> str:
+    """``brdf_table { "file" … }`` / ``brdf_model { "spec" … }`` from a dict.
+
+    The dict holds ``file`` (brdf_table) or ``spec`` (brdf_model), and optionally
+    ``interpolate`` (0|1), ``scale`` (grey or RGB), ``use_color`` (bool), ``direction``.
+    """
+    v = dict(value)
+    head = v.pop("file" if name == "brdf_table" else "spec")
+    if '"' in str(head) or "\n" in str(head):
+        raise ValueError(f"{name}: {head!r} contains a quote or newline")
+    parts = [f'"{head}"']
+    if "interpolate" in v:
+        parts.append(f"interpolate {int(v.pop('interpolate'))}")
+    if "scale" in v:
+        parts.append(f"scale {colour(v.pop('scale'))}")
+    if "use_color" in v:
+        parts.append(f"use_color {'on' if v.pop('use_color') else 'off'}")
+    if "direction" in v:
+        parts.append(f"direction {vec(v.pop('direction'))}")
+    if v:
+        raise KeyError(f"{name}: unknown keys {sorted(v)}")
+    return f"{name} {{ " + " ".join(parts) + " }"
+
+
 #: Finish keyword → writer. Stock POV 3.7 keywords the harness models analytically; extend
 #: here for new finishes (one entry each).
 FINISH_KEYWORDS: dict[str, FinishWriter] = {
@@ -96,6 +120,8 @@ FINISH_KEYWORDS: dict[str, FinishWriter] = {
     "specular": float_keyword,
     "roughness": float_keyword,
     "metallic": float_keyword,
+    "brdf_table": model_keyword,
+    "brdf_model": model_keyword,
 }
 
 
