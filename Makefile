@@ -55,7 +55,7 @@ QUILT_ENV := QUILT_PATCHES=$(TOP)/patches QUILT_PC=.pc-brdf QUILT_NO_DIFF_TIMEST
 QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
 PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
 
-.PHONY: all help deps fetch shading fork venv demo test test-all test-unit test-py bench \
+.PHONY: all help deps fetch shading fork brdf-data venv demo test test-all test-unit test-py bench \
         check-patches refresh-patches clean distclean
 
 all: $(FORK_BIN) $(POVCONF)/povray.conf $(POVCONF)/povray.ini ## Build the fork (fetch, verify, patch, configure, build)
@@ -139,6 +139,12 @@ $(POVCONF)/%: conf/%.in Makefile
 
 fork: all
 
+# ---------------------------------------------------------------- ready BRDF tables
+BRDFTOOL   := $(SHADING_BUILD)/brdftool
+BRDF_DATA  := $(BUILD)/brdf_data
+brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt into build/brdf_data
+	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)
+
 # ---------------------------------------------------------------- python harness
 venv: $(VENV)/.installed ## Create the project venv with the harness requirements
 $(VENV)/.installed: harness/requirements.txt | $(STAMPS)/deps
@@ -147,7 +153,7 @@ $(VENV)/.installed: harness/requirements.txt | $(STAMPS)/deps
 	@touch $@
 
 # ---------------------------------------------------------------- use
-demo: all ## Render scenes/demo.pov and print where the image is
+demo: all brdf-data ## Render scenes/demo.pov and print where the image is
 	@mkdir -p out
 	cd scenes && $(TOP)/$(FORK_BIN) +Idemo.pov +O$(TOP)/out/demo.png +W640 +H360 +A0.1 -D +WT$(JOBS) 2>$(TOP)/out/demo.log || { tail -20 $(TOP)/out/demo.log; exit 1; }
 	@grep -E 'Trace Time' out/demo.log | head -1 || true

@@ -1,9 +1,9 @@
-"""BRDF tables for scenes: made with ``brdftool`` once, cached under ``build/brdf_data``.
+"""BRDF tables for scenes: made with ``brdftool`` once, cached under ``build/brdf_cache``.
 
     path = tables.tabulated("microfacet d=beckmann m=0.3", step=1.0)
 
 The cache key is the tool's whole command line (hashed), so a table is rebuilt only when
-what it would contain changes; delete ``build/brdf_data`` to force it.
+what it would contain changes; delete ``build/brdf_cache`` to force it.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Sequence
 
 from .paths import REPO_ROOT, brdftool
 
-CACHE_DIR = REPO_ROOT / "build" / "brdf_data"
+CACHE_DIR = REPO_ROOT / "build" / "brdf_cache"
 
 
 def _run(args: Sequence[str], stem: str) -> Path:
