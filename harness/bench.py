@@ -18,9 +18,10 @@ import argparse
 import statistics
 import sys
 from dataclasses import dataclass, field
-from typing import Callable, Mapping, Optional, Sequence
+from pathlib import Path
+from typing import Callable, Mapping, Optional, Sequence, Union
 
-from . import runner
+from . import runner, tables
 
 #: The reference scene of the pipeline issue: diffuse, phong, specular, reflection and
 #: a few lights, no new keywords. Its trace time is about 0.4 s at 960x720 on one thread.
@@ -46,7 +47,11 @@ class Side:
 
     binary: str
     scene: str
-    files: Mapping[str, str] = field(default_factory=dict)
+    #: name in the job directory -> path, or a callable making the file (tables), run once
+    files: Mapping[str, Union[str, Path, Callable[[], Path]]] = field(default_factory=dict)
+
+    def resolved_files(self) -> dict[str, Path]:
+        return {k: Path(v() if callable(v) else v) for k, v in self.files.items()}
 
 
 @dataclass
@@ -73,6 +78,26 @@ row("unmodified scene: fork / stock",
     Side("stock", REFERENCE_SCENE), Side("fork", REFERENCE_SCENE),
     note="same scene, no new keywords; expected ~1.0")
 
+#: The reference scene with every sphere's finish replaced by a 1 deg table of a
+#: comparable material (a Lambert base under a rough dielectric lobe).
+TABLE_SPEC = "microfacet d=tr m=0.15 f=dielectric eta=1.5 kd=0.6 rho_s=0.4"
+_STOCK_FINISH = "finish { diffuse 0.6 phong 0.6 phong_size 30 specular 0.2 roughness 0.02 }"
+row("brdf_table 1 deg trilinear / stock phong+specular",
+    Side("stock", REFERENCE_SCENE),
+    Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, 'finish { brdf_table { "t.brdf" } }'),
+         files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)}),
+    note="goal <= 1.15")
+row("brdf_table 1 deg nearest / stock phong+specular",
+    Side("stock", REFERENCE_SCENE),
+    Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, 'finish { brdf_table { "t.brdf" interpolate 0 } }'),
+         files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)}),
+    note="")
+row("brdf_model (same microfacet, direct) / stock phong+specular",
+    Side("stock", REFERENCE_SCENE),
+    Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, f'finish {{ brdf_model {{ "{TABLE_SPEC}" }} }}')),
+    note="analytic evaluation")
+assert all(_STOCK_FINISH not in r.candidate.scene for r in ROWS[1:])
+
 
 @dataclass
 class Result:
@@ -91,7 +116,7 @@ class Result:
 
 def _trace_time(side: Side, r: Row) -> float:
     res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=1,
-                        files=dict(side.files))
+                        files=side.resolved_files())
     if res.trace_seconds is None:
         raise RuntimeError(f"{r.name}: POV printed no trace time")
     return res.trace_seconds

@@ -159,3 +159,20 @@ sphere {{ <0.3, -0.6, 0.2>, 0.4 pigment {{ rgb 1 }} finish {{ F }} }}
     err = rel_rmse(a, b)
     print(f"radiosity table vs diffuse rel-RMSE {err:.2e}")
     assert err < 1e-3
+
+
+def test_copied_finish_keeps_its_diffuse(fork):
+    # The block that names the model decides about diffuse; `finish { F }` keeps F's values.
+    text = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0,0,-10> direction z right 2*x up 2*y }}
+light_source {{ <0,0,-1000> rgb 1 parallel point_at 0 }}
+#declare F = finish {{ ambient 0 brdf_model {{ "lambert rho=0.1" }} diffuse 0.6 }}
+sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ {finish} }} }}
+"""
+    direct = runner.render(text.format(finish='ambient 0 brdf_model { "lambert rho=0.1" } diffuse 0.6'),
+                           fork, width=16, height=16, float_exr=True).image
+    copied = runner.render(text.format(finish="F"), fork, width=16, height=16, float_exr=True).image
+    np.testing.assert_array_equal(copied, direct)
+    # headlight at the sphere's centre: 0.1 (model) + 0.6 (diffuse), cos ~ 1
+    assert abs(float(direct[8, 8, 0]) - 0.7) < 0.01

@@ -30,18 +30,27 @@ def test_finish_defaults_and_order():
 
 
 def test_unknown_finish_keyword_is_an_error_and_registry_extends():
-    with pytest.raises(KeyError, match="brdf_table"):
-        povwriter.finish_block({"brdf_table": "lambert.brdf"})
+    with pytest.raises(KeyError, match="shiny"):
+        povwriter.finish_block({"shiny": 1.0})
     reg = dict(povwriter.FINISH_KEYWORDS)
     try:
-        povwriter.FINISH_KEYWORDS["brdf_table"] = povwriter.string_keyword
+        povwriter.FINISH_KEYWORDS["shiny"] = povwriter.string_keyword
         povwriter.FINISH_KEYWORDS["ward"] = povwriter.block_keyword
-        text = povwriter.finish_block({"brdf_table": "t.brdf", "ward": {"alpha": 0.2, "rho_s": (0.1, 0.2, 0.3)}})
-        assert 'brdf_table "t.brdf"' in text
+        text = povwriter.finish_block({"shiny": "t.brdf", "ward": {"alpha": 0.2, "rho_s": (0.1, 0.2, 0.3)}})
+        assert 'shiny "t.brdf"' in text
         assert "ward { alpha 0.2 rho_s <0.1, 0.2, 0.3> }" in text
     finally:
         povwriter.FINISH_KEYWORDS.clear()
         povwriter.FINISH_KEYWORDS.update(reg)
+
+
+def test_model_keywords():
+    text = povwriter.finish_block({"brdf_table": {"file": "g.brdf", "interpolate": 0, "scale": (1, 0.5, 0.25),
+                                                  "use_color": True, "direction": (0, 1, 0)}})
+    assert 'brdf_table { "g.brdf" interpolate 0 scale rgb <1.0, 0.5, 0.25> use_color on direction <0, 1.0, 0> }' in text
+    assert 'brdf_model { "lambert rho=0.5" }' in povwriter.finish_block({"brdf_model": {"spec": "lambert rho=0.5"}})
+    with pytest.raises(KeyError, match="bogus"):
+        povwriter.finish_block({"brdf_table": {"file": "g.brdf", "bogus": 1}})
 
 
 def test_sphere_text_is_explicit_and_linear():

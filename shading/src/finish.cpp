@@ -107,6 +107,19 @@ std::size_t finish_model_live_count() {
 
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment) {
+    if (model.iso_table) {
+        // Isotropic table: theta_i, theta_r and phi = phi_r - phi_i straight from world vectors.
+        // |sin phi| and cos phi scaled by sin(theta_i) sin(theta_r): the normal component of
+        // l x v, and l.v minus the product of the normal components.
+        const double ci = dot(n, to_light), co = dot(n, to_eye);
+        if (!(ci > 0) || !(co > 0)) return Rgb(0.0);
+        const double sp = std::fabs(dot(n, cross(to_light, to_eye)));
+        const double cp = dot(to_light, to_eye) - ci * co;
+        Rgb w = model.iso_table->eval_iso(std::acos(std::min(ci, 1.0)), std::acos(std::min(co, 1.0)),
+                                          std::atan2(sp, cp), model.iso_interp) *
+                (kPi * ci) * model.scale;
+        return model.tint ? w * pigment : w;
+    }
     const Frame frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent)
                                                   : Frame::from_normal(n);
     Rgb w = pov_weight(*model.brdf, frame.to_local(to_eye), frame.to_local(to_light)) * model.scale;
@@ -145,6 +158,7 @@ public:
     bool anisotropic() const override { return table_->anisotropic(); }
     std::string describe() const override { return table_->describe() + " interp=" + to_string(interp_); }
     const BrdfTable& table() const { return *table_; }
+    Interp interpolation() const { return interp_; }
 
 private:
     std::shared_ptr<const BrdfTable> table_;
@@ -179,7 +193,12 @@ std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf) {
     auto m = std::make_shared<FinishModel>();
     m->albedo.resize(FinishModel::kAlbedoNodes);
     const BrdfTable* table = dynamic_cast<const BrdfTable*>(brdf.get());
-    if (auto view = dynamic_cast<const TableView*>(brdf.get())) table = &view->table();
+    m->iso_interp = table ? table->interpolation() : Interp::Linear;
+    if (auto view = dynamic_cast<const TableView*>(brdf.get())) {
+        table = &view->table();
+        m->iso_interp = view->interpolation();
+    }
+    if (table && !table->anisotropic()) m->iso_table = table;
     for (int k = 0; k < FinishModel::kAlbedoNodes; ++k) {
         // The grazing node itself is degenerate (wo in the surface); use 89.9 deg there.
         double th = std::min(k * (kPi / 2) / (FinishModel::kAlbedoNodes - 1), 89.9 * kPi / 180);

@@ -321,8 +321,10 @@ BrdfTable::AxisPos BrdfTable::locate(int axis, double deg, Interp interp) const 
     double d = deg;
     if (geom_.is_phi_axis(axis)) {
         // Isotropic: f is even in phi and 360-periodic, so fold onto [0, 180].
-        d = std::fmod(std::fabs(d), 360.0);
-        if (d > 180.0) d = 360.0 - d;
+        if (!(d >= 0.0 && d <= 180.0)) {  // the common case [0, 180] needs no folding
+            d = std::fmod(std::fabs(d), 360.0);
+            if (d > 180.0) d = 360.0 - d;
+        }
     }
     x = d * inv_step_[axis];
     const double last = double(n - 1);
@@ -619,6 +621,16 @@ TableGrid unfold(const BrdfTable& table) {
     return grid;
 }
 
+// The theta node at exactly 90 deg is sampled half a step inside (90 - step/2). Many models
+// diverge there like 1/cos (microfacet f = DGF / (4 cos_i cos_o) at the grazing mirror pair:
+// 1.4e6 /sr for a TR lobe with m = 0.15) while f cos_i stays finite; a node holding the
+// divergent value would make every lookup in the last cell a firefly (f cos = 3000 instead
+// of 11 at 89.5 deg). Nothing renders the node itself: POV's weight has cos_i = 0 there.
+static double grazing_safe(const TableGeometry& g, int axis, uint32_t i) {
+    const double deg = g.axis_deg(axis, i);
+    return i + 1 == g.n[axis] ? deg - 0.5 * (90.0 / double(g.n[axis] - 1)) : deg;
+}
+
 TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
     TableGrid grid(geometry);
     const TableGeometry& g = grid.geom;
@@ -629,11 +641,11 @@ TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
         unravel(g, cell, idx);
         Vec3 wi, wo;
         if (iso) {
-            wi = spherical_direction(g.axis_deg(0, idx[0]) * kDeg, 0.0);
-            wo = spherical_direction(g.axis_deg(1, idx[1]) * kDeg, g.axis_deg(2, idx[2]) * kDeg);
+            wi = spherical_direction(grazing_safe(g, 0, idx[0]) * kDeg, 0.0);
+            wo = spherical_direction(grazing_safe(g, 1, idx[1]) * kDeg, g.axis_deg(2, idx[2]) * kDeg);
         } else {
-            wi = spherical_direction(g.axis_deg(0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg);
-            wo = spherical_direction(g.axis_deg(2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg);
+            wi = spherical_direction(grazing_safe(g, 0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg);
+            wo = spherical_direction(grazing_safe(g, 2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg);
         }
         Rgb v = brdf.f(wo, wi);
         for (int c = 0; c < 3; ++c)

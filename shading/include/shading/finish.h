@@ -27,6 +27,10 @@ struct FinishModel {
     // make_finish_model; used for indirect light and for lights POV gives no highlight.
     std::vector<Rgb> albedo;
     static constexpr int kAlbedoNodes = 91;
+    // Set by make_finish_model for an isotropic table: finish_light_weight then reads the
+    // table from the three cosines directly, without building a local frame.
+    const BrdfTable* iso_table = nullptr;
+    Interp iso_interp = Interp::Linear;
 };
 
 // A finish model around `brdf` with its directional albedo computed: a table's own
