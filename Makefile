@@ -169,6 +169,7 @@ test-all: all venv ## Everything in `test` plus the slow renders
 
 bench: all venv ## Trace-time ratios fork/stock on reference scenes
 	$(PY) -m harness.bench
+	$(PY) -m harness.table_error
 
 # ---------------------------------------------------------------- patch tooling
 check-patches: $(UPSTREAM_FILES) ## Apply the series to a pristine tree; fail on fuzz or offset
