@@ -82,21 +82,18 @@ row("unmodified scene: fork / stock",
 #: comparable material (a Lambert base under a rough dielectric lobe).
 TABLE_SPEC = "microfacet d=tr m=0.15 f=dielectric eta=1.5 kd=0.6 rho_s=0.4"
 _STOCK_FINISH = "finish { diffuse 0.6 phong 0.6 phong_size 30 specular 0.2 roughness 0.02 }"
-row("brdf_table 1 deg trilinear / stock phong+specular",
-    Side("stock", REFERENCE_SCENE),
-    Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, 'finish { brdf_table { "t.brdf" } }'),
-         files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)}),
+
+def _table_side(lookup: str = "") -> Side:
+    """The fork rendering the reference scene with the 1 deg table finish."""
+    return Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, f'finish {{ brdf_table {{ "t.brdf"{lookup} }} }}'),
+                files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)})
+
+
+row("brdf_table 1 deg trilinear / stock phong+specular", Side("stock", REFERENCE_SCENE), _table_side(),
     note="goal <= 1.15")
-row("brdf_table 1 deg trilinear / fork phong+specular",
-    Side("fork", REFERENCE_SCENE),
-    Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, 'finish { brdf_table { "t.brdf" } }'),
-         files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)}),
+row("brdf_table 1 deg trilinear / fork phong+specular", Side("fork", REFERENCE_SCENE), _table_side(),
     note="same binary: the cost of the table path alone")
-row("brdf_table 1 deg nearest / stock phong+specular",
-    Side("stock", REFERENCE_SCENE),
-    Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, 'finish { brdf_table { "t.brdf" interpolate 0 } }'),
-         files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)}),
-    note="")
+row("brdf_table 1 deg nearest / stock phong+specular", Side("stock", REFERENCE_SCENE), _table_side(" interpolate 0"))
 row("brdf_model (same microfacet, direct) / stock phong+specular",
     Side("stock", REFERENCE_SCENE),
     Side("fork", REFERENCE_SCENE.replace(_STOCK_FINISH, f'finish {{ brdf_model {{ "{TABLE_SPEC}" }} }}')),

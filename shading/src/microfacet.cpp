@@ -1,5 +1,6 @@
 // Microfacet distributions, sampling and the microfacet BRDF (microfacet.h). Equations: MODELS.md.
 #include "shading/microfacet.h"
+#include "format.h"
 
 #include <algorithm>
 #include <sstream>
@@ -33,16 +34,7 @@ constexpr int kGaussSegments = 256;
 // exp(-64) ~ 1.6e-28 of its scale, so the truncation is invisible in double precision.
 double gaussian_amax(double n2) { return std::min(kPi / 2, 8.0 / n2); }
 
-std::string fmt(double v) {
-    std::ostringstream s;
-    s.precision(6);
-    s << v;
-    return s.str();
-}
-std::string fmt(const Rgb& c) {
-    if (c.r == c.g && c.g == c.b) return fmt(c.r);
-    return fmt(c.r) + "," + fmt(c.g) + "," + fmt(c.b);
-}
+using detail::fmt;
 
 }  // namespace
 

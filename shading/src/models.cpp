@@ -1,21 +1,13 @@
 // Analytic non-microfacet BRDF models (models.h). Equations: MODELS.md.
 #include "shading/models.h"
+#include "format.h"
 
 #include <sstream>
 
 namespace shading {
 
 namespace {
-std::string fmt(double v) {
-    std::ostringstream s;
-    s.precision(6);
-    s << v;
-    return s.str();
-}
-std::string fmt(const Rgb& c) {
-    if (c.r == c.g && c.g == c.b) return fmt(c.r);
-    return fmt(c.r) + "," + fmt(c.g) + "," + fmt(c.b);
-}
+using detail::fmt;
 // Largest double below 1: sampling maps need u < 1 strictly.
 constexpr double kOneMinusEps = 1.0 - 0x1.0p-53;
 }  // namespace
