@@ -190,8 +190,10 @@ TableHeader parse_table_header(const uint8_t* d, size_t size, const std::string&
                           std::to_string(h.payload_bytes));
     h.checksum = rd64(d + 88);
     h.nodata_filled = rd64(d + 96);
-    if (h.nodata_filled > g.cells())
-        throw_table_error(name, 96, "at most " + std::to_string(g.cells()) + " filled no-data cells",
+    // The count is taken on the measured (unfolded) grid, before any reciprocity folding.
+    const uint64_t measured_cells = uint64_t(g.n[0]) * g.n[1] * g.n[2] * g.n[3];
+    if (h.nodata_filled > measured_cells)
+        throw_table_error(name, 96, "at most " + std::to_string(measured_cells) + " filled no-data cells",
                           std::to_string(h.nodata_filled));
     uint32_t desc = rd32(d + 104);
     if (desc > kMaxDescription)
