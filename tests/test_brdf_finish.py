@@ -176,3 +176,47 @@ sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ {finish} }} }}
     np.testing.assert_array_equal(copied, direct)
     # headlight at the sphere's centre: 0.1 (model) + 0.6 (diffuse), cos ~ 1
     assert abs(float(direct[8, 8, 0]) - 0.7) < 0.01
+
+
+def test_layered_texture_under_a_clear_layer(fork):
+    # A fully transparent top layer (transmit 1) leaves the table layer below untouched;
+    # a half-transparent one lets half of it through (POV's layer opacity).
+    path = tables.tabulated("lambert rho=0.5", step=5.0)
+    text = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0,0,-10> direction z right 2*x up 2*y }}
+light_source {{ <0,0,-1000> rgb 1 parallel point_at 0 }}
+sphere {{ 0, 1
+  texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 brdf_table {{ "t.brdf" }} }} }}
+  {top}
+}}
+"""
+    files = {"t.brdf": path}
+    opts = dict(width=32, height=32, float_exr=True, files=files)
+    alone = runner.render(text.format(top=""), fork, **opts).image
+    clear = runner.render(text.format(top="texture { pigment { rgbt <1, 0, 0, 1> } finish { ambient 0 diffuse 0 } }"),
+                          fork, **opts).image
+    half = runner.render(text.format(top="texture { pigment { rgbt <0, 0, 0, 0.5> } finish { ambient 0 diffuse 0 } }"),
+                         fork, **opts).image
+    np.testing.assert_array_equal(clear, alone)
+    np.testing.assert_allclose(half, 0.5 * alone, rtol=1e-6, atol=1e-7)
+    assert alone.max() > 0.45
+
+
+def test_photons_reach_a_table_finish(fork):
+    # A glass sphere focuses a spot light into a caustic on a floor whose finish is a
+    # Lambert table: the photon path (ComputePhotonDiffuseLight) must light it like
+    # `diffuse` (same photons, same weights).
+    path = tables.tabulated("lambert rho=0.7", step=2.0)
+    text = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 photons {{ count 20000 }} }}
+camera {{ location <0, 4, -0.01> look_at 0 angle 50 }}
+light_source {{ <0, 6, 0> rgb 1 spotlight point_at 0 radius 10 falloff 12 photons {{ refraction on }} }}
+plane {{ y, 0 pigment {{ rgb 1 }} finish {{ ambient 0 {floor} }} }}
+sphere {{ <0, 1.2, 0>, 0.6 pigment {{ rgbf 1 }} interior {{ ior 1.5 }} photons {{ target refraction on }} }}
+"""
+    opts = dict(width=48, height=48, float_exr=True)
+    table = runner.render(text.format(floor='brdf_table { "t.brdf" }'), fork, files={"t.brdf": path}, **opts).image
+    diffuse = runner.render(text.format(floor="diffuse 0.7"), fork, **opts).image
+    assert diffuse.max() > 1.0  # the caustic is there
+    np.testing.assert_allclose(table, diffuse, rtol=1e-5, atol=1e-6)
