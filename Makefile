@@ -104,7 +104,7 @@ $(SHADING_BUILD)/build.ninja: shading/CMakeLists.txt | $(STAMPS)/deps
 
 # cmake/ninja knows the library's own dependencies: always ask it (a no-op is instant).
 $(LIBSHADING): $(SHADING_BUILD)/build.ninja FORCE
-	cmake --build $(SHADING_BUILD) -j $(JOBS) | { grep -v '^ninja: no work to do' || true; }
+	cmake --build $(SHADING_BUILD) -j $(JOBS) | { grep -vE '^(ninja: no work to do|\[0/2\] Re-checking globbed)' || true; }
 
 # ---------------------------------------------------------------- the fork
 # The configure command line, kept in a file that changes only when the flags change, so
@@ -167,7 +167,7 @@ test-all: all venv ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q
 
-bench: all venv ## Trace-time ratios fork/stock on reference scenes
+bench: all venv ## Trace-time ratios (fork/stock, table/phong) and table image error vs step
 	$(PY) -m harness.bench
 	$(PY) -m harness.table_error
 
