@@ -53,16 +53,27 @@ TEST(Finish, ScaleAndTint) {
 }
 
 TEST(Finish, AlbedoOfLambertIsRho) {
-    // Cosine-weighted quadrature is exact for a constant BRDF.
+    // The MIS quadrature (cosine grid + mirror lobes) is within 0.1 % for a constant BRDF
+    // (measured 3e-4 low: lobe samples near the horizon are dropped).
     auto m = make_finish_model(std::make_shared<Lambert>(Rgb(0.7)));
     ASSERT_EQ(m->albedo.size(), size_t(FinishModel::kAlbedoNodes));
-    for (const Rgb& a : m->albedo) EXPECT_NEAR(a.g, 0.7, 1e-12);
+    for (const Rgb& a : m->albedo) EXPECT_NEAR(a.g, 0.7, 7e-4);
     // Indirect light: POV's ambient colour times rho, like `diffuse 0.7`.
     Vec3 n(0, 0, 1);
-    EXPECT_NEAR(finish_indirect_weight(*m, n, normalize(Vec3(1, 0, 1)), Rgb(1.0)).r, 0.7, 1e-12);
+    EXPECT_NEAR(finish_indirect_weight(*m, n, normalize(Vec3(1, 0, 1)), Rgb(1.0)).r, 0.7, 7e-4);
     // Lights POV gives no highlight: Lambert of the albedo, 0.7 cos.
     Vec3 l = normalize(Vec3(0, 1, 2));
-    EXPECT_NEAR(finish_diffuse_light_weight(*m, n, l, Rgb(1.0)).b, 0.7 * l.z, 1e-12);
+    EXPECT_NEAR(finish_diffuse_light_weight(*m, n, l, Rgb(1.0)).b, 0.7 * l.z, 7e-4 * l.z);
+}
+
+TEST(Finish, AlbedoOfANarrowLobeIsResolved) {
+    // A near-mirror lobe without Fresnel (F = 1, Smith G ~ 1 away from grazing) reflects
+    // ~all light: a grid of cosine-weighted directions alone misses it (0.91 at normal,
+    // 0.12 at 84 deg with 64 x 128 strata); the mirror-lobe components resolve it.
+    auto m = make_finish_model(make_brdf("microfacet d=beckmann m=0.05"));
+    EXPECT_NEAR(finish_model_albedo(*m, 1.0).g, 1.0, 0.01);
+    EXPECT_NEAR(finish_model_albedo(*m, 0.5).g, 1.0, 0.01);
+    EXPECT_GT(finish_model_albedo(*m, std::cos(84 * kPi / 180)).g, 0.9);
 }
 
 TEST(Finish, AlbedoOfMicrofacetFollowsFresnel) {
@@ -139,6 +150,19 @@ TEST(Finish, GrazingCellOfATableIsNoFirefly) {
         EXPECT_LT(got, 1.1 * want) << th;
     }
     EXPECT_GT(worst, 0.1);
+}
+
+TEST(Finish, ModelsFromTheSameSpecShareTheirBrdf) {
+    const std::string spec = "microfacet d=beckmann m=0.21 f=dielectric eta=1.4";
+    auto a = make_finish_model_from_spec(spec);
+    auto b = make_finish_model_from_spec(spec);
+    EXPECT_NE(a.get(), b.get());              // each finish owns its scale/tint/tangent
+    EXPECT_EQ(a->brdf.get(), b->brdf.get());  // ... and shares the BRDF and its albedo
+    ASSERT_EQ(a->albedo.size(), b->albedo.size());
+    for (size_t k = 0; k < a->albedo.size(); ++k) EXPECT_EQ(a->albedo[k].g, b->albedo[k].g);
+    a->scale = Rgb(3.0);
+    EXPECT_EQ(make_finish_model_from_spec(spec)->scale.r, 1.0);  // no state leaks between finishes
+    EXPECT_THROW(make_finish_model_from_spec("microfacet d=nonsense"), std::exception);
 }
 
 TEST(SharedTable, LoadsOncePerKeyAndFreesWithTheLastUser) {

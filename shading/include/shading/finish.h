@@ -26,7 +26,7 @@ struct FinishModel {
     // equally spaced theta in [0, 90] deg (scale and tint not applied). Filled by
     // make_finish_model; used for indirect light and for lights POV gives no highlight.
     std::vector<Rgb> albedo;
-    static constexpr int kAlbedoNodes = 91;
+    static constexpr int kAlbedoNodes = 46;  // every 2 deg
     // Set by make_finish_model for an isotropic table: finish_light_weight then reads the
     // table from the three cosines directly, without building a local frame.
     const BrdfTable* iso_table = nullptr;
@@ -34,9 +34,15 @@ struct FinishModel {
 };
 
 // A finish model around `brdf` with its directional albedo computed: a table's own
-// (BrdfTable::directional_albedo), otherwise a cosine-weighted quadrature of the model
-// (128 x 256 stratified directions per node: < 0.2 % for lobes wider than ~3 deg).
+// (BrdfTable::directional_albedo), otherwise a quadrature of the model
+// (multiple importance sampling of a cosine grid and mirror lobes, 46 nodes: ~55 ms per
+// microfacet model, once per distinct spec; see finish.cpp).
 std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf);
+
+// make_finish_model(make_brdf(spec)), memoised by spec while some model made from it lives:
+// finishes that repeat a spec share its BRDF and skip the albedo quadrature (~55 ms).
+// Scale, tint and tangent of the returned (fresh) model are the caller's to set.
+std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec);
 
 // The model's directional albedo at cos(theta) (linear between nodes; scale/tint not applied).
 Rgb finish_model_albedo(const FinishModel& model, double cos_theta);
