@@ -3,7 +3,7 @@
 # `make` fetches Debian's povray source package through apt, verifies it, unpacks it
 # into povray/ (Debian's patches applied), applies our series from patches/ with
 # quilt, builds the POV-free shading library (shading/, CMake) and links it into an
-# -O2 build of POV-Ray (never -ffast-math). Everything it downloads or builds stays
+# -O2 build of POV-Ray (never fast-math). Everything it downloads or builds stays
 # inside this tree (.cache/, povray/, build/, .venv/), so a second `make` does nothing.
 #
 # `make help` lists the targets.
@@ -39,7 +39,7 @@ UPSTREAM_FILES := $(CACHE)/povray_3.7.0.10.orig.tar.gz $(CACHE)/povray_3.7.0.10-
 APT_PACKAGES := build-essential dpkg-dev devscripts quilt cmake ninja-build libgtest-dev \
                 python3 python3-venv povray povray-includes
 
-# POV-Ray's configure: --disable-optimiz stops it adding -ffast-math and -march=native.
+# POV-Ray's configure: --disable-optimiz stops it adding fast-math and -march=native flags.
 # The shading library reaches the fork through CPPFLAGS/LDFLAGS/LIBS, not by copying sources.
 POV_CXXFLAGS := -O2 -fno-fast-math
 POV_CONFIGURE_ARGS := --disable-optimiz --disable-strip --with-boost-thread=boost_thread \
