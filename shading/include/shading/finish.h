@@ -20,8 +20,6 @@ struct FinishModel {
     Rgb scale{1.0};          // user scale on the whole BRDF
     bool tint = false;       // multiply by the pigment colour (off: the BRDF carries its own colour)
     Vec3 tangent{1, 0, 0};   // world-space tangent hint for anisotropic models (see Frame)
-    std::string source;      // what the user wrote (file name or model spec), for messages/statistics
-    std::size_t bytes = 0;   // memory owned by the model but not counted elsewhere (tables report their own)
     // Directional albedo a(theta) = integral of f cos over the hemisphere, at kAlbedoNodes
     // equally spaced theta in [0, 90] deg (scale and tint not applied). Filled by
     // make_finish_model; used for indirect light and for lights POV gives no highlight.
