@@ -1,11 +1,13 @@
 #include "shading/finish.h"
 
 #include "shading/model_spec.h"
+#include "shading/models.h"
 
 #include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -138,8 +140,55 @@ Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const V
 Rgb finish_indirect_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment) {
     double c = dot(n, to_eye);
     if (!(c > 0)) return Rgb(0.0);
-    Rgb w = finish_model_albedo(model, c) * model.scale;
+    Rgb w = (model.reflection_samples > 0 ? model.base : finish_model_albedo(model, c)) * model.scale;
     return model.tint ? w * pigment : w;
+}
+
+namespace {
+// splitmix64 (Steele, Lea & Flood 2014): a bijective 64-bit mixer.
+std::uint64_t mix64(std::uint64_t x) {
+    x += 0x9e3779b97f4a7c15ull;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+    return x ^ (x >> 31);
+}
+std::uint64_t bits(double v) {
+    std::uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+}
+double unit_double(std::uint64_t x) { return double(x >> 11) * 0x1.0p-53; }  // [0, 1)
+}  // namespace
+
+std::uint64_t finish_sample_seed(const Vec3& point, const Vec3& direction) {
+    std::uint64_t h = 0;
+    for (double v : {point.x, point.y, point.z, direction.x, direction.y, direction.z}) h = mix64(h ^ bits(v));
+    return h;
+}
+
+bool finish_reflection_sample(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment,
+                              std::uint64_t seed, int k, Vec3* dir, Rgb* weight) {
+    const int count = model.reflection_samples;
+    if (count <= 0 || k < 0 || k >= count) return false;
+    const Frame frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent)
+                                                  : Frame::from_normal(n);
+    const Vec3 wo = frame.to_local(to_eye);
+    if (!(wo.z > 0)) return false;
+    constexpr double kInvPhi = 0.6180339887498949;  // golden ratio - 1
+    const double r1 = unit_double(mix64(seed)), r2 = unit_double(mix64(seed ^ 0x5851f42d4c957f2dull));
+    double u1 = (k + 0.5) / count + r1, u2 = std::fmod(k * kInvPhi, 1.0) + r2;
+    u1 = std::min(u1 - std::floor(u1), kOneMinusEps);
+    u2 = std::min(u2 - std::floor(u2), kOneMinusEps);
+    const Vec3 wi = model.brdf->sample_glossy(wo, u1, u2);
+    if (!(wi.z > 0)) return false;
+    const double pdf = model.brdf->pdf_glossy(wo, wi);
+    if (!(pdf > 0) || !std::isfinite(pdf)) return false;
+    Rgb f = model.brdf->f(wo, wi) - lambert_f(model.base);
+    f = Rgb(std::max(0.0, f.r), std::max(0.0, f.g), std::max(0.0, f.b));  // rounding below the base
+    Rgb w = f * (wi.z / (pdf * count)) * model.scale;
+    *weight = model.tint ? w * pigment : w;
+    *dir = frame.to_world(wi);
+    return true;
 }
 
 Rgb finish_model_albedo(const FinishModel& model, double cos_theta) {
@@ -167,39 +216,25 @@ private:
     Interp interp_;
 };
 
-// Directional albedo at theta_o by multiple importance sampling over stratified grids: a
-// cosine-weighted component (smooth and diffuse parts) and cos^e lobes about the mirror
-// direction with e = 30, 300, 3000 (glossy to near-mirror lobes, ~15 to ~1.5 deg wide),
-// combined with the balance heuristic (equal counts: each sample weighs f cos / sum of the
-// component pdfs). Lambert within 0.1 %; no assumption about the model beyond Brdf::f.
+// Directional albedo at theta_o by multiple importance sampling over stratified grids of the
+// four components of the default sampler (brdf.h): cosine-weighted (smooth and diffuse
+// parts) and cos^e lobes about the mirror direction, e = 30, 300, 3000 (glossy to
+// near-mirror lobes, ~15 to ~1.5 deg wide), combined with the balance heuristic (equal
+// counts: each sample weighs f cos / the mixture pdf). Lambert within 0.1 %; no assumption
+// about the model beyond Brdf::f.
 Rgb quadrature_albedo(const Brdf& b, double theta_o) {
-    constexpr int n = 48;                      // strata per axis and component
-    constexpr double kExp[] = {30.0, 300.0, 3000.0};
+    constexpr int n = 48;  // strata per axis and component
     const Vec3 wo(std::sin(theta_o), 0.0, std::cos(theta_o));
-    const Vec3 mirror(-wo.x, 0.0, wo.z);
-    const Frame lobe = Frame::from_normal(mirror);
-    auto pdf_sum = [&](const Vec3& wi) {
-        double p = wi.z * kInvPi;
-        const double ca = std::max(0.0, dot(wi, mirror));
-        for (double e : kExp) p += (e + 1.0) / (2.0 * kPi) * std::pow(ca, e);
-        return p;
-    };
+    const Vec3 axes[4] = {Vec3(0, 0, 1), Vec3(-wo.x, 0.0, wo.z), Vec3(-wo.x, 0.0, wo.z), Vec3(-wo.x, 0.0, wo.z)};
+    const double exps[4] = {1.0, kGenericLobeExponents[0], kGenericLobeExponents[1], kGenericLobeExponents[2]};
     Rgb sum;
     for (int comp = 0; comp < 4; ++comp)
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
-                const double u1 = (i + 0.5) / n, u2 = (j + 0.5) / n, ph = 2.0 * kPi * u2;
-                Vec3 wi;
-                if (comp == 0) {
-                    const double r = std::sqrt(u1);
-                    wi = Vec3(r * std::cos(ph), r * std::sin(ph), std::sqrt(1.0 - u1));
-                } else {
-                    const double c = std::pow(1.0 - u1, 1.0 / (kExp[comp - 1] + 1.0));
-                    const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
-                    wi = lobe.to_world(Vec3(sn * std::cos(ph), sn * std::sin(ph), c));
-                }
+                const Vec3 wi = sample_cosine_power(axes[comp], exps[comp], (i + 0.5) / n, (j + 0.5) / n);
                 if (!(wi.z > 0)) continue;  // below the surface: contributes 0
-                sum += b.f(wo, wi) * (wi.z / pdf_sum(wi));
+                // The default mixture pdf (not a model's own sampler): 1/4 of the component sum.
+                sum += b.f(wo, wi) * (wi.z / (4.0 * b.Brdf::pdf(wo, wi)));
             }
     return sum * (1.0 / (n * n));
 }
@@ -227,6 +262,7 @@ std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf) {
         double th = std::min(k * (kPi / 2) / (FinishModel::kAlbedoNodes - 1), 89.9 * kPi / 180);
         m->albedo[k] = table ? table->directional_albedo(th) : quadrature_albedo(*brdf, th);
     }
+    m->base = brdf->lambert_base();
     m->brdf = std::move(brdf);
     return m;
 }
@@ -244,6 +280,7 @@ std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec
         if (it != cache.end())
             if (BrdfPtr brdf = it->second.brdf.lock()) {
                 auto m = std::make_shared<FinishModel>();
+                m->base = brdf->lambert_base();
                 m->brdf = std::move(brdf);
                 m->albedo = it->second.albedo;
                 return m;

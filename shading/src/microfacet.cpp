@@ -21,9 +21,6 @@ double gauss_legendre5(const F& f, double a, double b) {
     return s * h;
 }
 
-// Largest double below 1: samplers need u < 1 strictly (log(1 - u), u / (1 - u)).
-constexpr double kOneMinusEps = 1.0 - 0x1.0p-53;
-
 // Gaussian D's alpha-density without the constant: exp(-(a n2)^2) cos a sin a.
 struct GaussianIntegrand {
     double n2;
@@ -291,8 +288,11 @@ double Microfacet::specular_probability() const {
 }
 
 Vec3 Microfacet::sample(const Vec3& wo, double u1, double u2) const {
+    return sample_mix(wo, u1, u2, specular_probability());
+}
+Vec3 Microfacet::sample_glossy(const Vec3& wo, double u1, double u2) const { return sample_mix(wo, u1, u2, 1.0); }
+Vec3 Microfacet::sample_mix(const Vec3& wo, double u1, double u2, double ps) const {
     if (wo.z <= 0) return {};  // viewer below the surface: no reflection to sample
-    double ps = specular_probability();
     if (u1 < ps) {
         Vec3 h = d.sample_h(std::min(u1 / ps, kOneMinusEps), u2);
         Vec3 wi = reflect_about(wo, h);
@@ -306,9 +306,10 @@ Vec3 Microfacet::sample(const Vec3& wo, double u1, double u2) const {
     return wi;
 }
 
-double Microfacet::pdf(const Vec3& wo, const Vec3& wi) const {
+double Microfacet::pdf(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, specular_probability()); }
+double Microfacet::pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, 1.0); }
+double Microfacet::pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const {
     if (wo.z <= 0 || wi.z <= 0) return 0.0;  // sample() never returns such pairs
-    double ps = specular_probability();
     Vec3 h = half_vector(wo, wi);
     // dw_h/dw_i = 1 / (4 V.h); V.h >= (N.V + N.L)/2 > 0 for a pair above the surface.
     double spec = d.normalized(h.z) * h.z / (4.0 * dot(wo, h));

@@ -8,8 +8,6 @@ namespace shading {
 
 namespace {
 using detail::fmt;
-// Largest double below 1: sampling maps need u < 1 strictly.
-constexpr double kOneMinusEps = 1.0 - 0x1.0p-53;
 }  // namespace
 
 // Every f below starts with the same guard: a direction at or below the surface
@@ -62,8 +60,11 @@ double Ward::specular_probability() const {
     return ws + wd > 0 ? ws / (ws + wd) : 1.0;  // nothing reflects: any choice is valid
 }
 Vec3 Ward::sample(const Vec3& wo, double u1, double u2) const {
+    return sample_mix(wo, u1, u2, specular_probability());
+}
+Vec3 Ward::sample_glossy(const Vec3& wo, double u1, double u2) const { return sample_mix(wo, u1, u2, 1.0); }
+Vec3 Ward::sample_mix(const Vec3& wo, double u1, double u2, double ps) const {
     if (wo.z <= 0) return {};  // viewer below the surface: nothing to sample
-    double ps = specular_probability();
     if (u1 < ps) {
         Vec3 h = sample_beckmann_aniso(ax, ay, std::min(u1 / ps, kOneMinusEps), u2);
         Vec3 wi = reflect_about(wo, h);
@@ -73,9 +74,10 @@ Vec3 Ward::sample(const Vec3& wo, double u1, double u2) const {
     double r = std::sqrt(v), phi = 2.0 * kPi * u2;
     return {r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0 - v)};
 }
-double Ward::pdf(const Vec3& wo, const Vec3& wi) const {
+double Ward::pdf(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, specular_probability()); }
+double Ward::pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, 1.0); }
+double Ward::pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const {
     if (wo.z <= 0 || wi.z <= 0) return 0.0;  // sample() never returns such pairs
-    double ps = specular_probability();
     Vec3 h = half_vector(wo, wi);
     // dw_h/dw_i = 1 / (4 V.h); V.h >= (N.V + N.L)/2 > 0 here.
     double spec = d_beckmann_aniso(h, ax, ay) * h.z / (4.0 * dot(wo, h));

@@ -79,9 +79,10 @@ struct Chi2 {
 // Chi-square goodness of fit of sample() against pdf() (pbrt-v4 style): histogram of wi over
 // (theta, phi) cells of the upper hemisphere plus one cell for "no sample"; expected counts
 // from pdf() integrated by 2-D Simpson; cells with expected < 5 pooled.
+// kSub: Simpson intervals per cell and axis (raise it for lobes narrower than a cell).
 Chi2 chi2_test(const std::function<Vec3(double, double)>& sample, const std::function<double(const Vec3&)>& pdf,
-               int n, uint64_t seed) {
-    const int kT = 16, kP = 32, kSub = 8;
+               int n, uint64_t seed, int kSub = 8) {
+    const int kT = 16, kP = 32;
     std::vector<double> obs(kT * kP + 1, 0.0), expv(kT * kP + 1, 0.0);
     Rng rng(seed);
     int valid = 0;
@@ -339,17 +340,8 @@ TEST(MicrofacetSampling, ChiSquareSampleMatchesPdf) {
     for (const Case& c : cases) {
         BrdfPtr b = make_brdf(c.spec);
         Vec3 wo = spherical_direction(deg(c.theta_o), deg(c.phi_o));
-        std::function<Vec3(double, double)> sample;
-        std::function<double(const Vec3&)> pdf;
-        if (auto m = std::dynamic_pointer_cast<const Microfacet>(b)) {
-            sample = [m, wo](double u1, double u2) { return m->sample(wo, u1, u2); };
-            pdf = [m, wo](const Vec3& wi) { return m->pdf(wo, wi); };
-        } else {
-            auto w = std::dynamic_pointer_cast<const Ward>(b);
-            ASSERT_TRUE(w);
-            sample = [w, wo](double u1, double u2) { return w->sample(wo, u1, u2); };
-            pdf = [w, wo](const Vec3& wi) { return w->pdf(wo, wi); };
-        }
+        auto sample = [b, wo](double u1, double u2) { return b->sample(wo, u1, u2); };
+        auto pdf = [b, wo](const Vec3& wi) { return b->pdf(wo, wi); };
         Chi2 r = chi2_test(sample, pdf, 100000, seed++);
         EXPECT_GT(r.p, sidak) << c.spec << ": chi2=" << r.chi2 << " dof=" << r.dof;
         EXPECT_GT(r.dof, 20) << c.spec;
@@ -357,6 +349,47 @@ TEST(MicrofacetSampling, ChiSquareSampleMatchesPdf) {
         EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 0.01) << c.spec;
         EXPECT_LE(r.pdf_mass, 1.0 + 1e-4) << c.spec;
     }
+}
+
+// The default sampler every other model inherits (brdf.cpp), and the specular-lobe-only
+// samplers used for glossy reflection (sample_glossy), against their pdfs.
+TEST(MicrofacetSampling, ChiSquareDefaultAndGlossySamplers) {
+    struct Case {
+        const char* spec;
+        double theta_o, phi_o;
+        bool glossy;
+    };
+    const Case cases[] = {
+        {"lambert rho=0.7", 0, 0, false},
+        {"phong_pov phong=0.5 phong_size=40 diffuse=0.5", 35, 0, false},
+        {"phong_normalized kd=0.2 ks=0.6 n=200", 60, 45, false},
+        {"oren_nayar rho=0.5 sigma=0.4", 80, 0, false},
+        {"lafortune kd=0.1 lobe=-1,-1,1,40,0.5 lobe=0.8,0.8,0.9,6,0.2", 50, 200, false},
+        {"microfacet d=beckmann m=0.2 kd=0.6 rho_s=0.3", 40, 0, true},
+        {"microfacet form=survey d=tr m=0.1 kd=0.5", 70, 0, true},
+        {"ward rho_d=0.5 rho_s=0.2 ax=0.05 ay=0.2", 30, 60, true},
+    };
+    const int kTests = sizeof(cases) / sizeof(cases[0]);
+    const double alpha = 0.01, sidak = 1.0 - std::pow(1.0 - alpha, 1.0 / kTests);
+    uint64_t seed = 777;
+    for (const Case& c : cases) {
+        BrdfPtr b = make_brdf(c.spec);
+        Vec3 wo = spherical_direction(deg(c.theta_o), deg(c.phi_o));
+        auto sample = [&](double u1, double u2) { return c.glossy ? b->sample_glossy(wo, u1, u2) : b->sample(wo, u1, u2); };
+        auto pdf = [&](const Vec3& wi) { return c.glossy ? b->pdf_glossy(wo, wi) : b->pdf(wo, wi); };
+        // The default sampler's 1.5 deg lobe needs a finer quadrature of the cells.
+        Chi2 r = chi2_test(sample, pdf, 100000, seed++, c.glossy ? 8 : 32);
+        EXPECT_GT(r.p, sidak) << c.spec << ": chi2=" << r.chi2 << " dof=" << r.dof;
+        EXPECT_GT(r.dof, 20) << c.spec;
+        EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 0.01) << c.spec;
+        EXPECT_LE(r.pdf_mass, 1.0 + 1e-3) << c.spec;
+    }
+    // The glossy samplers really drop the cosine branch: a direction far from the lobe has
+    // zero glossy density but positive full density.
+    BrdfPtr m = make_brdf("microfacet d=beckmann m=0.05 kd=0.6 rho_s=0.3");
+    Vec3 wo = spherical_direction(deg(30), 0), far = spherical_direction(deg(60), deg(90));
+    EXPECT_GT(m->pdf(wo, far), 0.1);
+    EXPECT_LT(m->pdf_glossy(wo, far), 1e-30);
 }
 
 TEST(MicrofacetSampling, ChiSquareDetectsAWrongPdf) {

@@ -379,7 +379,9 @@ TEST(Models, HardCasesFiniteNonNegative) {
             for (const Vec3& wi : dirs) {
                 Rgb v = b->f(wo, wi);
                 ASSERT_TRUE(ok(v)) << spec << " wo.z=" << wo.z << " wi.z=" << wi.z << " -> " << v.r;
-                if (wo.z <= 0 || wi.z <= 0) ASSERT_EQ(v.max_component(), 0.0) << spec;
+                if (wo.z <= 0 || wi.z <= 0) {
+                    ASSERT_EQ(v.max_component(), 0.0) << spec;
+                }
                 ASSERT_TRUE(ok(pov_weight(*b, wo, wi))) << spec;
             }
     }

@@ -19,7 +19,35 @@ public:
     virtual bool anisotropic() const { return false; }
     // Short human-readable description with parameters, e.g. "lambert(rho=0.5)".
     virtual std::string describe() const = 0;
+
+    // Albedo of the Lambertian base the model includes (f contains base / pi), per channel;
+    // zero for models without one. The rest, f - base/pi, is the model's glossy part.
+    virtual Rgb lambert_base() const { return Rgb(0.0); }
+
+    // Importance sampling of wi for light reflected toward wo: sample() maps (u1, u2) in
+    // [0,1)^2 to a unit wi with density pdf(wo, wi) per solid angle, or returns the zero
+    // vector (no sample: the direction fell below the surface; pdf() integrates to the
+    // probability of a valid sample). The default is a model-agnostic mixture (1/4 each):
+    // cosine-weighted, and cos^e lobes about the mirror direction of wo with e = 30, 300,
+    // 3000 (lobes ~15 to ~1.5 deg wide); it covers the whole hemisphere, so f cos / pdf is
+    // an unbiased estimator for any model, and the lobes keep its variance moderate for
+    // glossy and near-mirror reflection.
+    virtual Vec3 sample(const Vec3& wo, double u1, double u2) const;
+    virtual double pdf(const Vec3& wo, const Vec3& wi) const;
+    // The same for the glossy part only (what a finish's `samples` traces). Defaults to
+    // sample()/pdf(); models with a Lambertian base sample their specular lobe alone.
+    virtual Vec3 sample_glossy(const Vec3& wo, double u1, double u2) const { return sample(wo, u1, u2); }
+    virtual double pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf(wo, wi); }
 };
+
+// The default sampler of Brdf::sample()/pdf(): exponents of its mirror lobes.
+constexpr double kGenericLobeExponents[3] = {30.0, 300.0, 3000.0};
+// A direction with density (e+1)/(2 pi) cos^e about the unit `axis` (e = 1 about the normal
+// is cosine-weighted hemisphere sampling), and that density at w (0 behind the axis).
+Vec3 sample_cosine_power(const Vec3& axis, double e, double u1, double u2);
+double cosine_power_pdf(const Vec3& axis, double e, const Vec3& w);
+// Largest double below 1, so u in [0,1) stays below 1 after scaling.
+constexpr double kOneMinusEps = 1.0 - 0x1.0p-53;
 
 using BrdfPtr = std::shared_ptr<const Brdf>;
 

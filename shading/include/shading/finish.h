@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -29,6 +30,14 @@ struct FinishModel {
     // table from the three cosines directly, without building a local frame.
     const BrdfTable* iso_table = nullptr;
     Interp iso_interp = Interp::Linear;
+    // Albedo of the model's Lambertian base (Brdf::lambert_base), set by make_finish_model.
+    Rgb base{0.0};
+    // Finish `samples N` (0: off, at most kMaxReflectionSamples): the model's glossy part,
+    // f - base/pi, also reflects the scene, through N rays importance-sampled from its lobe
+    // (finish_reflection_sample). Indirect (radiosity) light then reaches only the base
+    // (finish_indirect_weight), so no light is counted twice.
+    int reflection_samples = 0;
+    static constexpr int kMaxReflectionSamples = 4096;
 };
 
 // A finish model around `brdf` with its directional albedo computed: a table's own
@@ -80,7 +89,23 @@ Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_
 Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment);
 
 // Indirect (radiosity) light: uniform incident light reflects a(theta_eye) of it, so POV's
-// ambient colour is multiplied by the directional albedo towards the eye (times scale, tint).
+// ambient colour is multiplied by the directional albedo towards the eye (times scale, tint);
+// with reflection_samples > 0 only the Lambertian base's albedo (the sampled rays carry the rest).
 Rgb finish_indirect_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment);
+
+// Glossy reflection (reflection_samples > 0). Ray k (0 <= k < N = reflection_samples) at a
+// surface point: *dir, the world direction to trace, and *weight, the factor on the colour
+// it brings back, f_glossy cos_i / (pdf_glossy N) times scale and tint, so that
+// pixel += sum_k weight_k * traced_k estimates the reflected radiance without bias.
+// (u1, u2) of ray k come from a rank-1 lattice, ((k + 1/2)/N, k/phi mod 1), rotated by two
+// numbers drawn from `seed`: stratified in both dimensions, repeatable. Returns false when
+// the sample gives nothing (below the surface, or zero density); it still counts toward N.
+bool finish_reflection_sample(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment,
+                              std::uint64_t seed, int k, Vec3* dir, Rgb* weight);
+
+// Seed for a surface point's reflection rays: a hash of the bit patterns of the hit point and
+// of the incoming ray's direction. Images are then the same in every run and for any number
+// of render threads or tile order.
+std::uint64_t finish_sample_seed(const Vec3& point, const Vec3& direction);
 
 }  // namespace shading

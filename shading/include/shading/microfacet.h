@@ -227,14 +227,23 @@ struct Microfacet final : Brdf {
     std::string describe() const override;
     double geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const;
 
+    Rgb lambert_base() const override { return kd; }
+
     // Importance sampling (both forms): the normalised D(h) cos(theta_h), mirrored about h,
     // mixed with cosine sampling of the diffuse base in proportion kd : rho_s (averages).
     // Returns wi, or the zero vector when the mirrored direction is below the surface.
-    Vec3 sample(const Vec3& wo, double u1, double u2) const;
+    Vec3 sample(const Vec3& wo, double u1, double u2) const override;
     // Density of sample() per solid angle of wi: D(h)(N.h) / (4 V.h) mixed with cos_i/pi.
-    double pdf(const Vec3& wo, const Vec3& wi) const;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    // The specular lobe alone (probability 1 for the D-sampled branch).
+    Vec3 sample_glossy(const Vec3& wo, double u1, double u2) const override;
+    double pdf_glossy(const Vec3& wo, const Vec3& wi) const override;
     // Probability that sample() picks the specular lobe.
     double specular_probability() const;
+
+private:
+    Vec3 sample_mix(const Vec3& wo, double u1, double u2, double ps) const;
+    double pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const;
 };
 
 }  // namespace shading

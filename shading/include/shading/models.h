@@ -96,6 +96,7 @@ struct Lambert final : Brdf {
     Rgb rho{0.5};
     explicit Lambert(const Rgb& rho_) : rho(rho_) {}
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    Rgb lambert_base() const override { return rho; }
     std::string describe() const override;
 };
 
@@ -106,6 +107,7 @@ struct PhongPov final : Brdf {
     double phong_size = 40;
     Rgb diffuse{0.0};
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    Rgb lambert_base() const override { return diffuse; }
     std::string describe() const override;
 };
 
@@ -115,6 +117,7 @@ struct BlinnPov final : Brdf {
     double roughness = 0.05;
     Rgb diffuse{0.0};
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    Rgb lambert_base() const override { return diffuse; }
     std::string describe() const override;
 };
 
@@ -124,6 +127,7 @@ struct PhongNormalized final : Brdf {
     Rgb kd{0.0}, ks{0.5};
     double n = 20;
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    Rgb lambert_base() const override { return kd; }
     std::string describe() const override;
 };
 
@@ -140,9 +144,17 @@ struct Ward final : Brdf {
     std::string describe() const override;
     // Importance sampling: h from the anisotropic Beckmann D(h) cos(theta_h) (Walter 2005),
     // mixed with cosine sampling in proportion rho_d : rho_s. Zero vector = no sample.
-    Vec3 sample(const Vec3& wo, double u1, double u2) const;
-    double pdf(const Vec3& wo, const Vec3& wi) const;
+    Vec3 sample(const Vec3& wo, double u1, double u2) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    // The specular lobe alone.
+    Vec3 sample_glossy(const Vec3& wo, double u1, double u2) const override;
+    double pdf_glossy(const Vec3& wo, const Vec3& wi) const override;
     double specular_probability() const;
+    Rgb lambert_base() const override { return rho_d; }
+
+private:
+    Vec3 sample_mix(const Vec3& wo, double u1, double u2, double ps) const;
+    double pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const;
 };
 
 // Oren-Nayar 1994 qualitative model: f = rho/pi (A + B max(0, cos dphi) sin alpha tan beta).
@@ -163,6 +175,7 @@ struct Lafortune final : Brdf {
     Rgb kd{0.0};
     std::vector<Lobe> lobes;
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    Rgb lambert_base() const override { return kd; }
     bool anisotropic() const override;
     std::string describe() const override;
 };
