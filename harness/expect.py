@@ -144,11 +144,18 @@ def _no_metallic(finish: Mapping[str, Any]) -> None:
         raise NotImplementedError("metallic highlights are not modelled by harness.expect")
 
 
+def brdf_model_term(finish: Mapping[str, Any], s: ShadingInputs) -> np.ndarray:
+    """``brdf_model { "spec" … }``: the model re-derived in numpy (:mod:`harness.models`)."""
+    from .models import expect_term
+    return expect_term(finish, s)
+
+
 #: Finish keyword → term. Keywords in PARAMETER_KEYWORDS/EMISSIVE_KEYWORDS are not terms.
 FINISH_TERMS: dict[str, Term] = {
     "diffuse": diffuse_term,
     "phong": phong_term,
     "specular": specular_term,
+    "brdf_model": brdf_model_term,
 }
 
 

@@ -88,7 +88,8 @@ def model_keyword(name: str, value: Mapping[str, Any]) -> str:
     """``brdf_table { "file" … }`` / ``brdf_model { "spec" … }`` from a dict.
 
     The dict holds ``file`` (brdf_table) or ``spec`` (brdf_model), and optionally
-    ``interpolate`` (0|1), ``scale`` (grey or RGB), ``use_color`` (bool), ``direction``.
+    ``interpolate`` (0|1), ``scale`` (grey or RGB), ``use_color`` (bool), ``direction``,
+    ``samples`` (glossy reflection rays).
     """
     v = dict(value)
     head = v.pop("file" if name == "brdf_table" else "spec")
@@ -103,6 +104,8 @@ def model_keyword(name: str, value: Mapping[str, Any]) -> str:
         parts.append(f"use_color {'on' if v.pop('use_color') else 'off'}")
     if "direction" in v:
         parts.append(f"direction {vec(v.pop('direction'))}")
+    if "samples" in v:
+        parts.append(f"samples {int(v.pop('samples'))}")
     if v:
         raise KeyError(f"{name}: unknown keys {sorted(v)}")
     return f"{name} {{ " + " ".join(parts) + " }"

@@ -99,6 +99,7 @@ _COUNT_RES = {
     "shadow_ray_tests": re.compile(r"^Shadow Ray Tests:\s+(\d+)", re.MULTILINE),
     "shadow_rays_succeeded": re.compile(r"^Shadow Ray Tests:.*?Succeeded:\s+(\d+)", re.MULTILINE),
     "peak_memory_bytes": re.compile(r"^\s*Peak memory used:\s+(\d+)\s+bytes", re.MULTILINE),
+    "reflected_rays": re.compile(r"^Reflected Rays:\s+(\d+)", re.MULTILINE),
 }
 _MSG_RE = re.compile(r"^File '(?P<file>[^']*)' line (?P<line>\d+):\s*(?P<msg>.*)$", re.MULTILINE)
 _END_MARKERS = ("Fatal error", "Render failed", "----", "====")
@@ -111,7 +112,7 @@ def parse_stats(stderr: str) -> dict[str, float]:
     radiosity, trace (the ``(12.345 seconds)`` figure, else h/m/s); ``<what>_cpu_time`` and
     ``<what>_threads`` from the ``using N thread(s) with X CPU-seconds total`` line; ``pixels``,
     ``samples``, ``rays``, ``shadow_ray_tests``, ``shadow_rays_succeeded``,
-    ``peak_memory_bytes``. "No photons"/"No trace" lines give no key.
+    ``peak_memory_bytes``, ``reflected_rays``. "No photons"/"No trace" lines give no key.
     """
     out: dict[str, float] = {}
     for m in _TIME_RE.finditer(stderr):

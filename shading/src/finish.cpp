@@ -144,6 +144,14 @@ Rgb finish_indirect_weight(const FinishModel& model, const Vec3& n, const Vec3& 
     return model.tint ? w * pigment : w;
 }
 
+Rgb finish_glossy_albedo(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment) {
+    double c = dot(n, to_eye);
+    if (!(c > 0)) return Rgb(0.0);
+    Rgb a = finish_model_albedo(model, c) - model.base;
+    Rgb w = Rgb(std::max(0.0, a.r), std::max(0.0, a.g), std::max(0.0, a.b)) * model.scale;
+    return model.tint ? w * pigment : w;
+}
+
 namespace {
 // splitmix64 (Steele, Lea & Flood 2014): a bijective 64-bit mixer.
 std::uint64_t mix64(std::uint64_t x) {
@@ -216,27 +224,34 @@ private:
     Interp interp_;
 };
 
-// Directional albedo at theta_o by multiple importance sampling over stratified grids of the
-// four components of the default sampler (brdf.h): cosine-weighted (smooth and diffuse
-// parts) and cos^e lobes about the mirror direction, e = 30, 300, 3000 (glossy to
-// near-mirror lobes, ~15 to ~1.5 deg wide), combined with the balance heuristic (equal
-// counts: each sample weighs f cos / the mixture pdf). Lambert within 0.1 %; no assumption
-// about the model beyond Brdf::f.
+// Directional albedo at theta_o by multiple importance sampling over stratified grids of five
+// components: the four of the default sampler (brdf.h: cosine-weighted, and cos^e lobes about
+// the mirror direction with e = 30, 300, 3000) and the model's own sampler (Brdf::sample: the
+// microfacet D or Ward lobe, long tails included), combined with the balance heuristic (equal
+// counts: each sample weighs f cos / the mean of the five pdfs). Measured against a 1200 x 2400
+// midpoint rule (harness.models): Lambert exact, glossy parts within 0.3 % below 80 deg.
 Rgb quadrature_albedo(const Brdf& b, double theta_o) {
     constexpr int n = 48;  // strata per axis and component
     const Vec3 wo(std::sin(theta_o), 0.0, std::cos(theta_o));
-    const Vec3 axes[4] = {Vec3(0, 0, 1), Vec3(-wo.x, 0.0, wo.z), Vec3(-wo.x, 0.0, wo.z), Vec3(-wo.x, 0.0, wo.z)};
+    const Vec3 mirror(-wo.x, 0.0, wo.z);
+    const Vec3 axes[4] = {Vec3(0, 0, 1), mirror, mirror, mirror};
     const double exps[4] = {1.0, kGenericLobeExponents[0], kGenericLobeExponents[1], kGenericLobeExponents[2]};
+    // The default mixture's pdf is the mean of its four components (Brdf::pdf, not overridden).
+    auto mixture = [&](const Vec3& wi) { return 0.8 * b.Brdf::pdf(wo, wi) + 0.2 * b.pdf(wo, wi); };
+    // The Lambertian base integrates to its albedo exactly: only the rest is integrated, so a
+    // small glossy part on a large base keeps its relative accuracy.
+    const Rgb base = b.lambert_base(), base_f = base * kInvPi;
     Rgb sum;
-    for (int comp = 0; comp < 4; ++comp)
+    for (int comp = 0; comp < 5; ++comp)
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
-                const Vec3 wi = sample_cosine_power(axes[comp], exps[comp], (i + 0.5) / n, (j + 0.5) / n);
-                if (!(wi.z > 0)) continue;  // below the surface: contributes 0
-                // The default mixture pdf (not a model's own sampler): 1/4 of the component sum.
-                sum += b.f(wo, wi) * (wi.z / (4.0 * b.Brdf::pdf(wo, wi)));
+                const double u1 = (i + 0.5) / n, u2 = (j + 0.5) / n;
+                const Vec3 wi = comp < 4 ? sample_cosine_power(axes[comp], exps[comp], u1, u2) : b.sample(wo, u1, u2);
+                if (!(wi.z > 0)) continue;  // below the surface (or no sample): contributes 0
+                const double p = mixture(wi);
+                if (p > 0) sum += (b.f(wo, wi) - base_f) * (wi.z / (5.0 * p));
             }
-    return sum * (1.0 / (n * n));
+    return sum * (1.0 / (n * n)) + base;
 }
 
 }  // namespace

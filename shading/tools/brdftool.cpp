@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "shading/finish.h"
 #include "shading/merl.h"
 #include "shading/model_spec.h"
 #include "shading/table.h"
@@ -264,6 +265,23 @@ int cmd_info(Args& a) {
     return 0;
 }
 
+int cmd_albedo(Args& a) {
+    const std::string spec = joined_spec(a);
+    std::shared_ptr<FinishModel> m = make_finish_model(make_brdf(spec));
+    const bool glossy = a.has("--glossy");
+    std::cout << "# " << m->brdf->describe() << "\n# theta_o_deg  albedo r g b" << (glossy ? " (glossy part)" : "")
+              << "\n";
+    for (double th : a.list("--theta", {0, 15, 30, 45, 60, 75, 85, 89})) {
+        if (!(th >= 0 && th <= 90)) throw UsageError("--theta: angles in [0, 90] degrees");
+        Rgb v = finish_model_albedo(*m, std::cos(th * kPi / 180));
+        if (glossy) v = v - m->base;
+        char buf[128];
+        std::snprintf(buf, sizeof buf, "%g %.9g %.9g %.9g\n", th, v.r, v.g, v.b);
+        std::cout << buf;
+    }
+    return 0;
+}
+
 int cmd_check(Args& a) {
     const std::string path = a.pos[0];
     std::vector<std::string> failures, warnings;
@@ -386,6 +404,11 @@ const std::vector<Command>& commands() {
          "Print the header (geometry, checksum, description, no-data count), the memory a\n"
          "loaded table takes, and its directional albedo at a few theta_i.\n",
          {}, {}, 1, 1, cmd_info},
+        {"albedo", "albedo SPEC... [--theta 0,15,...] [--glossy]",
+         "Directional albedo a(theta_o) = integral of f cos over the hemisphere of an analytic\n"
+         "model, as finishes use it (46-node quadrature, linear between nodes; phi_o = 0).\n"
+         "  --glossy   minus the Lambertian base: what a finish's `samples` rays reflect\n",
+         {"--theta"}, {"--glossy"}, 1, -1, cmd_albedo},
         {"check", "check FILE.brdf [--theta-i 0,15,...] [--albedo-tol 1e-3] [--allow-energy-gain] [--max-recip REL]",
          "Validate a table: header and checksum, NaN/Inf/negative values (fail), reciprocity\n"
          "error max/rms (fail above --max-recip, relative to max f), directional albedo at\n"

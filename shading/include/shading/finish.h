@@ -103,6 +103,11 @@ Rgb finish_indirect_weight(const FinishModel& model, const Vec3& n, const Vec3& 
 bool finish_reflection_sample(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment,
                               std::uint64_t seed, int k, Vec3* dir, Rgb* weight);
 
+// The fraction of uniform light the reflection rays bring back at this view: the directional
+// albedo minus the Lambertian base, times scale and tint (for POV's adaptive depth control,
+// like `reflection`'s amount for a mirror ray).
+Rgb finish_glossy_albedo(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Rgb& pigment);
+
 // Seed for a surface point's reflection rays: a hash of the bit patterns of the hit point and
 // of the incoming ray's direction. Images are then the same in every run and for any number
 // of render threads or tile order.
