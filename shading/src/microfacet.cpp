@@ -270,9 +270,11 @@ Rgb Microfacet::f(const Vec3& wo, const Vec3& wi) const {
     Vec3 h = half_vector(wo, wi);  // wo.z + wi.z > 0, so wo + wi != 0
     double vh = dot(wo, h);        // = dot(wi, h) > 0
     double G = geometry(wo, wi, h);
-    // Both cosines divide: G vanishes at least as fast as the smaller one (V-cavity bounds
-    // G by 2 (N.H) min(N.V, N.L) / (V.H); Smith G ~ cos at grazing), so f stays finite;
-    // kCosFloor only keeps denormal cosines from overflowing.
+    // Both cosines divide. f is finite for every pair with positive cosines; away from the
+    // mirror pair G also vanishes with the smaller cosine. At the grazing mirror pair V-cavity
+    // G -> 1 (V.H -> N.V there), so f ~ D / (4 cos^2) and pi f cos_i ~ 1/cos: the V-cavity
+    // model's own grazing peak over a vanishing solid angle (albedo stays bounded; Smith G
+    // goes to 0 there instead). kCosFloor only keeps denormal cosines from overflowing.
     double nv = std::max(wo.z, kCosFloor), nl = std::max(wi.z, kCosFloor);
     double s;
     if (form == MicrofacetForm::Survey)

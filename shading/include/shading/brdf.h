@@ -35,7 +35,8 @@ public:
     virtual Vec3 sample(const Vec3& wo, double u1, double u2) const;
     virtual double pdf(const Vec3& wo, const Vec3& wi) const;
     // The same for the glossy part only (what a finish's `samples` traces). Defaults to
-    // sample()/pdf(); models with a Lambertian base sample their specular lobe alone.
+    // sample()/pdf(); Microfacet and Ward sample their specular lobe alone (the others keep
+    // the default mixture: unbiased, with some rays spent on the base's directions).
     virtual Vec3 sample_glossy(const Vec3& wo, double u1, double u2) const { return sample(wo, u1, u2); }
     virtual double pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf(wo, wi); }
 };

@@ -22,7 +22,8 @@ struct FinishModel {
     bool tint = false;       // multiply by the pigment colour (off: the BRDF carries its own colour)
     Vec3 tangent{1, 0, 0};   // world-space tangent hint for anisotropic models (see Frame)
     // Directional albedo a(theta) = integral of f cos over the hemisphere, at kAlbedoNodes
-    // equally spaced theta in [0, 90] deg (scale and tint not applied). Filled by
+    // equally spaced theta in [0, 90] deg (scale and tint not applied), for a viewer at
+    // azimuth 0 (along the tangent: an anisotropic model's albedo at other azimuths differs). Filled by
     // make_finish_model; used for indirect light and for lights POV gives no highlight.
     std::vector<Rgb> albedo;
     static constexpr int kAlbedoNodes = 46;  // every 2 deg
@@ -85,7 +86,8 @@ Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_
                         const Rgb& pigment);
 
 // Lights for which POV computes no highlight (radiosity gather rays, fill lights): the model
-// acts as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos.
+// acts as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos
+// (by reciprocity the light's reflectance; approximate for POV's non-reciprocal phong/specular).
 Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment);
 
 // Indirect (radiosity) light: uniform incident light reflects a(theta_eye) of it, so POV's

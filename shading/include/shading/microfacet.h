@@ -103,12 +103,14 @@ inline double tr_alpha_from_m(double m) { return m; }
 // ---------------------------------------------------------------- masking-shadowing G
 
 // V-cavity (Torrance-Sparrow 1967, Blinn 1977):
-// min(1, 2 (N.H)(N.V)/(V.H), 2 (N.H)(N.L)/(V.H)); V.H = L.H > 0 for a reflection pair.
+// min(1, 2 (N.H)(N.V)/(V.H), 2 (N.H)(N.L)/(V.H)). The denominator is safe without a floor:
+// for a reflection pair V.H = L.H = |V + L| / 2 >= (N.V + N.L) / 2 > 0, so the ratio is finite
+// and G in [0, 1]. (Unlike Smith, G -> 1 at the grazing mirror pair; see MODELS.md.)
 inline double g_vcavity(double nh, double nv, double nl, double vh) {
     if (vh <= 0) return 0.0;  // back-facing microfacet: not part of a reflection pair
     return std::min(1.0, 2.0 * nh * std::min(nv, nl) / vh);
 }
-// Smith Lambda for Beckmann (exact; Walter et al. 2007 eq. 25): a = 1/(m tan theta),
+// Smith Lambda for Beckmann (exact; Walter et al. 2007 sec. 5.1): a = 1/(m tan theta),
 // Lambda = (erf(a) - 1)/2 + exp(-a^2)/(2 a sqrt(pi)). Written with erfc for accuracy at large a.
 inline double smith_lambda_beckmann(const Vec3& w, double m) {
     double s2 = sin2_theta(w);
