@@ -200,7 +200,8 @@ bool finish_reflection_sample(const FinishModel& model, const Vec3& n, const Vec
 }
 
 Rgb finish_model_albedo(const FinishModel& model, double cos_theta) {
-    const std::vector<Rgb>& a = model.albedo;
+    if (!model.albedo) return Rgb(0.0);
+    const std::vector<Rgb>& a = model.albedo_nodes();
     if (a.empty()) return Rgb(0.0);
     double x = std::acos(std::clamp(cos_theta, 0.0, 1.0)) / (kPi / 2) * double(a.size() - 1);
     std::size_t i = std::min(std::size_t(x), a.size() - 2);
@@ -261,49 +262,66 @@ BrdfPtr table_brdf(std::shared_ptr<const BrdfTable> table, Interp interp) {
     return std::make_shared<TableView>(std::move(table), interp);
 }
 
+namespace {
+// The table behind a Brdf, if it is one (directly or through a TableView), and its lookup.
+const BrdfTable* table_of(const Brdf& b, Interp* interp) {
+    if (auto view = dynamic_cast<const TableView*>(&b)) {
+        if (interp) *interp = view->interpolation();
+        return &view->table();
+    }
+    const BrdfTable* t = dynamic_cast<const BrdfTable*>(&b);
+    if (t && interp) *interp = t->interpolation();
+    return t;
+}
+
+std::shared_ptr<FinishModel> finish_model_around(std::shared_ptr<const AlbedoNodes> albedo) {
+    auto m = std::make_shared<FinishModel>();
+    m->brdf = albedo->brdf();
+    m->base = m->brdf->lambert_base();
+    const BrdfTable* table = table_of(*m->brdf, &m->iso_interp);
+    if (table && !table->anisotropic()) m->iso_table = table;
+    m->albedo = std::move(albedo);
+    return m;
+}
+}  // namespace
+
+AlbedoNodes::AlbedoNodes(BrdfPtr brdf) : brdf_(std::move(brdf)) {
+    if (!brdf_) throw std::invalid_argument("AlbedoNodes: no BRDF");
+}
+
+const std::vector<Rgb>& AlbedoNodes::get() const {
+    std::call_once(once_, [this] {
+        const BrdfTable* table = table_of(*brdf_, nullptr);
+        std::vector<Rgb> nodes(FinishModel::kAlbedoNodes);
+        for (int k = 0; k < FinishModel::kAlbedoNodes; ++k) {
+            // The grazing node itself is degenerate (wo in the surface); use 89.9 deg there.
+            double th = std::min(k * (kPi / 2) / (FinishModel::kAlbedoNodes - 1), 89.9 * kPi / 180);
+            nodes[k] = table ? table->directional_albedo(th) : quadrature_albedo(*brdf_, th);
+        }
+        nodes_ = std::move(nodes);
+        done_.store(true, std::memory_order_release);
+    });
+    return nodes_;
+}
+
 std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf) {
     if (!brdf) throw std::invalid_argument("make_finish_model: no BRDF");
-    auto m = std::make_shared<FinishModel>();
-    m->albedo.resize(FinishModel::kAlbedoNodes);
-    const BrdfTable* table = dynamic_cast<const BrdfTable*>(brdf.get());
-    m->iso_interp = table ? table->interpolation() : Interp::Linear;
-    if (auto view = dynamic_cast<const TableView*>(brdf.get())) {
-        table = &view->table();
-        m->iso_interp = view->interpolation();
-    }
-    if (table && !table->anisotropic()) m->iso_table = table;
-    for (int k = 0; k < FinishModel::kAlbedoNodes; ++k) {
-        // The grazing node itself is degenerate (wo in the surface); use 89.9 deg there.
-        double th = std::min(k * (kPi / 2) / (FinishModel::kAlbedoNodes - 1), 89.9 * kPi / 180);
-        m->albedo[k] = table ? table->directional_albedo(th) : quadrature_albedo(*brdf, th);
-    }
-    m->base = brdf->lambert_base();
-    m->brdf = std::move(brdf);
-    return m;
+    return finish_model_around(std::make_shared<const AlbedoNodes>(std::move(brdf)));
 }
 
 std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec) {
-    struct Entry {
-        std::weak_ptr<const Brdf> brdf;  // shared while some finish uses it
-        std::vector<Rgb> albedo;         // 2 KB per distinct spec
-    };
+    // The BRDF and its (lazy) albedo, shared while some finish uses them.
     static std::mutex mutex;
-    static std::map<std::string, Entry> cache;
+    static std::map<std::string, std::weak_ptr<const AlbedoNodes>> cache;
     {
         std::lock_guard<std::mutex> lock(mutex);
         auto it = cache.find(spec);
         if (it != cache.end())
-            if (BrdfPtr brdf = it->second.brdf.lock()) {
-                auto m = std::make_shared<FinishModel>();
-                m->base = brdf->lambert_base();
-                m->brdf = std::move(brdf);
-                m->albedo = it->second.albedo;
-                return m;
-            }
+            if (auto albedo = it->second.lock()) return finish_model_around(std::move(albedo));
     }
     std::shared_ptr<FinishModel> m = make_finish_model(make_brdf(spec));  // may throw: caches nothing
     std::lock_guard<std::mutex> lock(mutex);
-    cache[spec] = Entry{m->brdf, m->albedo};
+    cache[spec] = m->albedo;
     return m;
 }
 

@@ -56,8 +56,8 @@ TEST(Finish, AlbedoOfLambertIsRho) {
     // The MIS quadrature (cosine grid + mirror lobes) is within 0.1 % for a constant BRDF
     // (measured 3e-4 low: lobe samples near the horizon are dropped).
     auto m = make_finish_model(std::make_shared<Lambert>(Rgb(0.7)));
-    ASSERT_EQ(m->albedo.size(), size_t(FinishModel::kAlbedoNodes));
-    for (const Rgb& a : m->albedo) EXPECT_NEAR(a.g, 0.7, 7e-4);
+    ASSERT_EQ(m->albedo_nodes().size(), size_t(FinishModel::kAlbedoNodes));
+    for (const Rgb& a : m->albedo_nodes()) EXPECT_NEAR(a.g, 0.7, 7e-4);
     // Indirect light: POV's ambient colour times rho, like `diffuse 0.7`.
     Vec3 n(0, 0, 1);
     EXPECT_NEAR(finish_indirect_weight(*m, n, normalize(Vec3(1, 0, 1)), Rgb(1.0)).r, 0.7, 7e-4);
@@ -158,8 +158,10 @@ TEST(Finish, ModelsFromTheSameSpecShareTheirBrdf) {
     auto b = make_finish_model_from_spec(spec);
     EXPECT_NE(a.get(), b.get());              // each finish owns its scale/tint/tangent
     EXPECT_EQ(a->brdf.get(), b->brdf.get());  // ... and shares the BRDF and its albedo
-    ASSERT_EQ(a->albedo.size(), b->albedo.size());
-    for (size_t k = 0; k < a->albedo.size(); ++k) EXPECT_EQ(a->albedo[k].g, b->albedo[k].g);
+    EXPECT_EQ(a->albedo.get(), b->albedo.get());  // one albedo, computed lazily, at most once
+    EXPECT_FALSE(a->albedo->computed());           // declaring a finish costs no quadrature
+    EXPECT_GT(finish_model_albedo(*b, 1.0).g, 0.0);
+    EXPECT_TRUE(a->albedo->computed());
     a->scale = Rgb(3.0);
     EXPECT_EQ(make_finish_model_from_spec(spec)->scale.r, 1.0);  // no state leaks between finishes
     EXPECT_THROW(make_finish_model_from_spec("microfacet d=nonsense"), std::exception);

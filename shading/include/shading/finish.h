@@ -4,10 +4,12 @@
 // and colours at the call site.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -16,6 +18,25 @@
 
 namespace shading {
 
+// The directional albedo a(theta) of one BRDF at FinishModel::kAlbedoNodes angles, computed
+// on first use (thread-safe, std::call_once) and shared by every finish model of that BRDF:
+// declaring a finish costs nothing until a render needs its albedo (indirect light, fill
+// lights, glossy-ray weights). Tables use their own (BrdfTable::directional_albedo), analytic
+// models a quadrature (~70 ms per distinct model; see finish.cpp).
+class AlbedoNodes {
+public:
+    explicit AlbedoNodes(BrdfPtr brdf);
+    const std::vector<Rgb>& get() const;
+    bool computed() const { return done_.load(std::memory_order_acquire); }
+    const BrdfPtr& brdf() const { return brdf_; }
+
+private:
+    BrdfPtr brdf_;
+    mutable std::once_flag once_;
+    mutable std::vector<Rgb> nodes_;
+    mutable std::atomic<bool> done_{false};
+};
+
 struct FinishModel {
     BrdfPtr brdf;            // the reflection model (analytic or tabulated), 1/sr
     Rgb scale{1.0};          // user scale on the whole BRDF
@@ -23,9 +44,11 @@ struct FinishModel {
     Vec3 tangent{1, 0, 0};   // world-space tangent hint for anisotropic models (see Frame)
     // Directional albedo a(theta) = integral of f cos over the hemisphere, at kAlbedoNodes
     // equally spaced theta in [0, 90] deg (scale and tint not applied), for a viewer at
-    // azimuth 0 (along the tangent: an anisotropic model's albedo at other azimuths differs). Filled by
-    // make_finish_model; used for indirect light and for lights POV gives no highlight.
-    std::vector<Rgb> albedo;
+    // azimuth 0 (along the tangent: an anisotropic model's albedo at other azimuths differs).
+    // Set by make_finish_model, computed when first read; used for indirect light, for lights
+    // POV gives no highlight, and for the weight of glossy reflection rays.
+    std::shared_ptr<const AlbedoNodes> albedo;
+    const std::vector<Rgb>& albedo_nodes() const { return albedo->get(); }
     static constexpr int kAlbedoNodes = 46;  // every 2 deg
     // Set by make_finish_model for an isotropic table: finish_light_weight then reads the
     // table from the three cosines directly, without building a local frame.
@@ -41,14 +64,12 @@ struct FinishModel {
     static constexpr int kMaxReflectionSamples = 4096;
 };
 
-// A finish model around `brdf` with its directional albedo computed: a table's own
-// (BrdfTable::directional_albedo), otherwise a quadrature of the model
-// (multiple importance sampling of a cosine grid and mirror lobes, 46 nodes: ~55 ms per
-// microfacet model, once per distinct spec; see finish.cpp).
+// A finish model around `brdf`, its directional albedo to be computed on first use
+// (AlbedoNodes).
 std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf);
 
 // make_finish_model(make_brdf(spec)), memoised by spec while some model made from it lives:
-// finishes that repeat a spec share its BRDF and skip the albedo quadrature (~55 ms).
+// finishes that repeat a spec share its BRDF and its albedo (computed once, if ever).
 // Scale, tint and tangent of the returned (fresh) model are the caller's to set.
 std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec);
 
