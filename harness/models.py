@@ -345,11 +345,7 @@ def _microfacet(kv: dict[str, str]) -> Model:
             with np.errstate(divide="ignore", invalid="ignore"):
                 G = np.minimum(1.0, np.minimum(2 * nh * nv / vh, 2 * nh * nl / vh))
         else:
-            if g == "smith":
-                lo, li = lambda_exact(kind, p, nv), lambda_exact(kind, p, nl)
-            else:  # smith_beckmann: Beckmann's Lambda at the equivalent m, for every D
-                lo, li = lambda_beckmann(nv, m_eq), lambda_beckmann(nl, m_eq)
-            G = 1.0 / (1.0 + lo + li)
+            G = 1.0 / (1.0 + lambda_exact(kind, p, nv) + lambda_exact(kind, p, nl))
         if fk == "none":
             F = np.ones((len(wo), 3))
         elif fk == "dielectric":

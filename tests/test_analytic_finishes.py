@@ -38,7 +38,7 @@ MODEL_SPECS = [
     "phong_normalized kd=0.3 ks=0.5 n=50",
     # every D x G in the normalised form (conductor Fresnel)
     *[f"microfacet d={d} m=0.25 g={g} {CONDUCTOR}"
-      for d in ("blinn", "gaussian", "tr", "beckmann") for g in ("vcavity", "smith", "smith_beckmann")],
+      for d in ("blinn", "gaussian", "tr", "beckmann") for g in ("vcavity", "smith")],
     # every D in the survey form with its native parameter, V-cavity, on a diffuse base
     "microfacet form=survey d=blinn n1=30 g=vcavity rho_s=0.5 kd=0.4",
     "microfacet form=survey d=gaussian n2=4 g=vcavity rho_s=0.3 f=dielectric eta=1.5 kd=0.5",

@@ -259,8 +259,6 @@ std::string FresnelTerm::describe() const {
 
 double Microfacet::geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
     if (g == GKind::VCavity) return g_vcavity(h.z, wo.z, wi.z, dot(wo, h));
-    if (g == GKind::SmithBeckmann)
-        return g_smith(d.smith_lambda_beckmann_equivalent(wo), d.smith_lambda_beckmann_equivalent(wi));
     return g_smith(d.smith_lambda(wo), d.smith_lambda(wi));
 }
 
@@ -322,7 +320,7 @@ std::string Microfacet::describe() const {
     std::string s = "microfacet(form=";
     s += form == MicrofacetForm::Survey ? "survey" : "normalized";
     s += std::string(" d=") + d.name() + " param=" + fmt(d.param()) + " (m=" + fmt(d.m_equivalent()) + ")";
-    s += g == GKind::VCavity ? " g=vcavity " : g == GKind::Smith ? " g=smith " : " g=smith_beckmann ";
+    s += g == GKind::VCavity ? " g=vcavity " : " g=smith ";
     s += fresnel.describe() + " rho_s=" + fmt(rho_s) + " kd=" + fmt(kd) + ")";
     return s;
 }

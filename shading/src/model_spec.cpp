@@ -189,8 +189,8 @@ BrdfPtr make_microfacet(Args& a) {
         b->d = NormalDistribution::from_m(kind, a.number("m", 0.3, 1e-4, 1));
     }
 
-    std::string g = a.word("g", "smith", {"vcavity", "smith", "smith_beckmann"});
-    b->g = g == "vcavity" ? GKind::VCavity : g == "smith" ? GKind::Smith : GKind::SmithBeckmann;
+    std::string g = a.word("g", "smith", {"vcavity", "smith"});
+    b->g = g == "vcavity" ? GKind::VCavity : GKind::Smith;
 
     std::string f = a.word("f", "none", {"none", "dielectric", "conductor", "schlick"});
     if (f != "dielectric") forbid(a, {"eta"}, "only used with f=dielectric");
@@ -289,8 +289,7 @@ const std::vector<ModelEntry>& registry() {
           "n1=<x>    d=blinn native exponent (instead of m), range [0,1e9]\n"
           "n2=<x>    d=gaussian native width (instead of m), range [0.1,1e5]\n"
           "n3=<x>    d=tr native alpha (instead of m), range [1e-4,1]\n"
-          "g=vcavity|smith|smith_beckmann     default smith (exact); smith_beckmann: Beckmann Lambda at m,\n"
-          "          approximate for d!=beckmann: albedo up to ~1.75 near grazing for tr (MODELS.md)\n"
+          "g=vcavity|smith                    default smith (exact height-correlated Smith for every d)\n"
           "f=none|dielectric|conductor|schlick  default none\n"
           "eta=<x>   f=dielectric: n_inside/n_outside, default 1.5, range [0.01,10]\n"
           "n=<rgb>   f=conductor (required): real index, range [0.01,20]\n"

@@ -202,9 +202,10 @@ private:
 
 // ---------------------------------------------------------------- the model
 
-// Smith: exact height-correlated Smith for every D; SmithBeckmann: Beckmann Lambda at the
-// Beckmann-equivalent m for every D (approximate for Blinn, Gaussian and TR).
-enum class GKind { VCavity, Smith, SmithBeckmann };
+// Smith: exact height-correlated Smith for every D. (Beckmann's Lambda at the equivalent m
+// for every D, the classic shortcut, is not offered: it breaks energy conservation near
+// grazing, by up to 75 % for TR; MODELS.md 3.4.)
+enum class GKind { VCavity, Smith };
 enum class FKind { None, Dielectric, Conductor, Schlick };
 enum class MicrofacetForm { Survey, Normalized };
 
