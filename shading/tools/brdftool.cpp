@@ -1,19 +1,25 @@
 // brdftool: build, convert, inspect, check and plot tabulated BRDFs (.brdf files).
 // The logic lives in the shading library (table.h, merl.h); this file is argument
 // handling and printing. Exit status: 0 ok, 1 failure (bad data, failed check), 2 usage.
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
 #include <set>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
+#include <unistd.h>
+
 #include "shading/finish.h"
+#include "shading/fit.h"
 #include "shading/merl.h"
 #include "shading/model_spec.h"
 #include "shading/table.h"
@@ -358,6 +364,204 @@ int cmd_plot(Args& a) {
     return 0;
 }
 
+
+// ---------------------------------------------------------------- fit and recommend
+
+struct FamilyFit {
+    FitResult fit;
+    ErrorStats error;  // of fit.spec over every node with data
+    std::string failure;
+};
+
+// Fits every family (in parallel) and measures each result on the whole grid.
+std::vector<FamilyFit> fit_all(const TableGrid& grid, const std::vector<std::string>& families, const Args& a) {
+    FitSampling sp;
+    sp.coarse_step_deg = a.number("--coarse", sp.coarse_step_deg);
+    sp.peak_cone_deg = a.number("--cone", sp.peak_cone_deg);
+    if (!(sp.coarse_step_deg > 0) || !(sp.peak_cone_deg >= 0)) throw UsageError("--coarse > 0 and --cone >= 0 degrees");
+    FitOptions fo;
+    fo.irls_rounds = int(a.number("--irls", fo.irls_rounds));
+    fo.restarts = int(a.number("--restarts", fo.restarts));
+    if (fo.irls_rounds < 1 || fo.restarts < 1) throw UsageError("--irls and --restarts: at least 1");
+    const FitData data = fit_samples(grid, sp);
+    if (!a.has("--quiet"))
+        std::cerr << "brdftool fit: " << data.samples.size() << " samples (" << data.nodata_cells
+                  << " no-data nodes skipped), " << families.size() << " famil" << (families.size() == 1 ? "y" : "ies")
+                  << "\n";
+    std::vector<FamilyFit> out(families.size());
+    unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+    int nthreads = int(a.number("--threads", double(hw)));
+    if (nthreads < 1) throw UsageError("--threads: at least 1");
+    std::atomic<size_t> next{0};
+    auto work = [&]() {
+        for (size_t k; (k = next.fetch_add(1)) < families.size();) {
+            try {
+                out[k].fit = fit_model(data, families[k], fo);
+                out[k].error = table_error(*make_brdf(out[k].fit.spec), grid);
+            } catch (const std::exception& e) {
+                out[k].fit.family = families[k];
+                out[k].failure = e.what();
+            }
+        }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 0; t < std::min<int>(nthreads, int(families.size())); ++t) pool.emplace_back(work);
+    for (auto& t : pool) t.join();
+    return out;
+}
+
+std::string fixed(double v, int prec) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%.*f", prec, v);
+    return b;
+}
+
+void print_fit(const FamilyFit& f, const TableGrid& grid) {
+    std::cout << "family: " << f.fit.family << "\n";
+    if (!f.failure.empty()) {
+        std::cout << "  FAILED: " << f.failure << "\n";
+        return;
+    }
+    const FitResult& r = f.fit;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "  error: %.5f rel-RMSE (cos theta_i weighted) over %llu nodes with data (%llu no-data excluded); %.5f on the fit samples",
+                  f.error.rel_rmse, static_cast<unsigned long long>(f.error.cells),
+                  static_cast<unsigned long long>(f.error.nodata_cells), r.sample_error);
+    std::cout << buf << "\n";
+    std::cout << "  diffuse estimate (off-specular median x pi): " << rgb_text(r.kd_estimate, grid.geom.channels) << "\n";
+    for (const FitParam& p : r.params) {
+        std::snprintf(buf, sizeof buf, "  %-18s %.6g", p.name.c_str(), p.value);
+        std::cout << buf;
+        if (p.stderr_ > 0) {
+            std::snprintf(buf, sizeof buf, " +- %.2g", p.stderr_);
+            std::cout << buf;
+        }
+        std::cout << "\n";
+    }
+    if (r.energy_clamped) std::cout << "  note: kd + rho_s exceeded 1 and was scaled to 1 (energy conservation)\n";
+    std::snprintf(buf, sizeof buf, "  fit: %d model passes, %.2f s", r.evaluations, r.seconds);
+    std::cout << buf << "\n";
+    std::cout << "  spec: " << r.spec << "\n";
+    std::cout << "  pov:  " << pov_finish_snippet(r.spec) << "\n";
+}
+
+std::vector<size_t> by_error(const std::vector<FamilyFit>& fits) {
+    std::vector<size_t> order(fits.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    auto key = [&](size_t k) { return fits[k].failure.empty() ? fits[k].error.rel_rmse : 1e300; };
+    std::stable_sort(order.begin(), order.end(), [&](size_t x, size_t y) { return key(x) < key(y); });
+    return order;
+}
+
+int cmd_fit(Args& a) {
+    const std::string path = a.pos[0];
+    TableGrid grid = load_table_grid(path);
+    std::vector<std::string> families = expand_families(a.str("--model", "all"));
+    std::vector<FamilyFit> fits = fit_all(grid, families, a);
+    if (a.has("--tsv")) {
+        std::cout << "family\terror\tsample_error\tseconds\tspec\n";
+        for (size_t k : by_error(fits))
+            std::cout << fits[k].fit.family << "\t" << (fits[k].failure.empty() ? fixed(fits[k].error.rel_rmse, 6) : "nan")
+                      << "\t" << fixed(fits[k].fit.sample_error, 6) << "\t" << fixed(fits[k].fit.seconds, 2) << "\t"
+                      << fits[k].fit.spec << "\n";
+        return 0;
+    }
+    for (const FamilyFit& f : fits) print_fit(f, grid);
+    if (fits.size() > 1) {
+        std::cout << "\nsummary (best first):\n";
+        for (size_t k : by_error(fits)) {
+            char buf[160];
+            std::snprintf(buf, sizeof buf, "  %-42s %s", fits[k].fit.family.c_str(),
+                          fits[k].failure.empty() ? fixed(fits[k].error.rel_rmse, 5).c_str() : "failed");
+            std::cout << buf << "\n";
+        }
+    }
+    bool any = false;
+    for (const FamilyFit& f : fits) any = any || f.failure.empty();
+    return any ? 0 : 1;
+}
+
+// Default cost table: $BRDF_COSTS, else costs.txt in the parent of brdftool's directory
+// (build/costs.txt for build/shading/brdftool, where harness/cost.py writes it).
+std::string default_costs_path() {
+    if (const char* e = std::getenv("BRDF_COSTS")) return e;
+    char buf[4096];
+    ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+    if (n <= 0) return "";
+    std::string exe(buf, size_t(n));
+    auto slash = exe.rfind('/');
+    if (slash == std::string::npos) return "";
+    std::string dir = exe.substr(0, slash);
+    slash = dir.rfind('/');
+    return (slash == std::string::npos ? std::string(".") : dir.substr(0, slash)) + "/costs.txt";
+}
+
+int cmd_recommend(Args& a) {
+    const std::string path = a.pos[0];
+    const double tol = a.number("--tol", 0.05);
+    if (!(tol > 0)) throw UsageError("--tol: a relative error > 0");
+    CostTable costs = builtin_costs();
+    std::string cpath = a.has("--costs") ? a.str("--costs") : default_costs_path();
+    if (a.has("--costs") || (!cpath.empty() && std::ifstream(cpath).good())) {
+        CostTable loaded = load_costs(cpath);  // an explicit --costs that is missing is an error
+        for (auto& e : loaded.entries) costs.entries.push_back(e);  // later (measured) entries win ties
+        costs.source = cpath + " (measured), built-in order for families it lacks";
+    }
+    TableGrid grid = load_table_grid(path);
+    std::vector<std::string> families = expand_families(a.str("--model", "all"));
+    std::vector<FamilyFit> fits = fit_all(grid, families, a);
+    const double table_cost = costs.cost_of("table");
+    // Cheapest within tolerance; ties by error.
+    long choice = -1;
+    for (size_t k = 0; k < fits.size(); ++k) {
+        if (!fits[k].failure.empty() || !(fits[k].error.rel_rmse <= tol)) continue;
+        if (choice < 0) {
+            choice = long(k);
+            continue;
+        }
+        double ck = costs.cost_of(fits[k].fit.family), cc = costs.cost_of(fits[size_t(choice)].fit.family);
+        if (ck < cc || (ck == cc && fits[k].error.rel_rmse < fits[size_t(choice)].error.rel_rmse)) choice = long(k);
+    }
+    if (a.has("--tsv")) {
+        std::cout << "family\terror\tcost\twithin_tol\tspec\n";
+        for (size_t k : by_error(fits)) {
+            bool ok = fits[k].failure.empty() && fits[k].error.rel_rmse <= tol;
+            std::cout << fits[k].fit.family << "\t" << (fits[k].failure.empty() ? fixed(fits[k].error.rel_rmse, 6) : "nan")
+                      << "\t" << fixed(costs.cost_of(fits[k].fit.family), 3) << "\t" << (ok ? "yes" : "no") << "\t"
+                      << fits[k].fit.spec << "\n";
+        }
+        std::cout << "table\t0\t" << fixed(table_cost, 3) << "\tyes\t\n";
+        std::cout << "choice\t" << (choice < 0 ? "table" : fits[size_t(choice)].fit.family) << "\t\t\t"
+                  << (choice < 0 ? "" : fits[size_t(choice)].fit.spec) << "\n";
+        return 0;
+    }
+    std::cout << "table: " << path << " (" << grid.geom.describe() << ")\n"
+              << "costs: " << costs.source << "\n"
+              << "tolerance: rel-RMSE (cos theta_i weighted) <= " << tol << "\n\n";
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "  %-42s %10s %7s  %s", "model", "error", "cost", "within tol");
+    std::cout << buf << "\n";
+    for (size_t k : by_error(fits)) {
+        const FamilyFit& f = fits[k];
+        bool ok = f.failure.empty() && f.error.rel_rmse <= tol;
+        std::snprintf(buf, sizeof buf, "  %-42s %10s %7.3f  %s", f.fit.family.c_str(),
+                      f.failure.empty() ? fixed(f.error.rel_rmse, 5).c_str() : "failed", costs.cost_of(f.fit.family),
+                      ok ? "yes" : "");
+        std::cout << buf << "\n";
+    }
+    std::snprintf(buf, sizeof buf, "  %-42s %10s %7.3f  %s", "(keep the table)", "0", table_cost, "yes");
+    std::cout << buf << "\n\n";
+    if (choice < 0) {
+        std::cout << "choice: keep the table (no model within " << tol << ")\n";
+        return 0;
+    }
+    const FamilyFit& c = fits[size_t(choice)];
+    std::snprintf(buf, sizeof buf, "choice: %s (error %.5f, cost %.3f; table cost %.3f)", c.fit.family.c_str(),
+                  c.error.rel_rmse, costs.cost_of(c.fit.family), table_cost);
+    std::cout << buf << "\n  spec: " << c.fit.spec << "\n  pov:  " << pov_finish_snippet(c.fit.spec) << "\n";
+    return 0;
+}
+
 std::string models_text() {
     std::string s = "models (from make_brdf):\n";
     try {
@@ -415,6 +619,31 @@ const std::vector<Command>& commands() {
          "--theta-i, theta_i nodes whose albedo exceeds 1 + tol (fail unless --allow-energy-gain).\n"
          "Exit status 1 on any failure.\n",
          {"--theta-i", "--albedo-tol", "--max-recip"}, {"--allow-energy-gain"}, 1, 1, cmd_check},
+        {"fit", "fit TABLE.brdf [--model all|FAMILY] [--coarse 5] [--cone 15] [--irls 3] [--restarts 2] [--threads N] [--tsv] [--quiet]",
+         "Fit analytic models to a table (no-data cells, NaN or negative, are excluded) and print\n"
+         "each fit's parameters, its error and a ready POV finish. docs/fitting.md explains the method.\n"
+         "  --model M     all (default), lambert, oren_nayar, ward, ward_aniso, lafortune [k=N],\n"
+         "                microfacet [d=blinn|gaussian|tr|beckmann] [g=vcavity|smith]\n"
+         "                [f=none|dielectric|conductor|schlick] (omitted keys: every choice)\n"
+         "  --coarse S    fit-sample sub-grid spacing in degrees (default 5)\n"
+         "  --cone A      full-resolution cone around the mirror direction, degrees (default 15)\n"
+         "  --irls N      robust reweighting rounds (1 = plain least squares; default 3)\n"
+         "  --restarts N  best scan starts refined by Levenberg-Marquardt (default 2)\n"
+         "  --threads N   families fitted in parallel (default: the CPU count)\n"
+         "  --tsv         one line per family: family, error, sample error, seconds, spec\n"
+         "Error: sqrt(sum w (model - table)^2 / sum w table^2), w = cos(theta_i), over every node with\n"
+         "data and every channel, the model sampled at the nodes as `tabulate` samples them.\n",
+         {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads"}, {"--tsv", "--quiet"}, 1, 1, cmd_fit},
+        {"recommend", "recommend TABLE.brdf [--tol 0.05] [--costs FILE] [--model all|FAMILY] [--tsv] [fit options]",
+         "Fit the models (as `fit`), rank them by error and render cost, and name the cheapest\n"
+         "model whose error is within --tol, or 'keep the table'.\n"
+         "  --tol E       largest acceptable rel-RMSE (cos-weighted, as `fit` reports; default 0.05)\n"
+         "  --costs FILE  trace-time ratios vs stock phong, lines 'FAMILY RATIO' (harness/cost.py\n"
+         "                writes them). Default: $BRDF_COSTS, else costs.txt in the parent directory of\n"
+         "                brdftool's (build/costs.txt); without a file, a built-in rough order.\n"
+         "  --tsv         one line per family: family, error, cost, within_tol, spec; then 'table'\n"
+         "                and 'choice' lines\n",
+         {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads", "--tol", "--costs"}, {"--tsv", "--quiet"}, 1, 1, cmd_recommend},
         {"plot", "plot FILE.brdf -o OUT.png [--theta-i 0,30,60,75] [--log] [--shared-scale] [--size 180]",
          "Polar slices in the plane of incidence, one panel per theta_i: light from the left\n"
          "(orange), radius = f / panel max (or log10, 3 decades, with --log) at angle theta_r\n"
