@@ -94,6 +94,12 @@ MerlBrdf::MerlBrdf(const MerlDims& dims, std::vector<double> raw, std::string na
     if (raw_.size() != 3 * dims_.per_channel())
         throw std::invalid_argument("MerlBrdf: " + std::to_string(raw_.size()) + " samples, needs " +
                                     std::to_string(3 * dims_.per_channel()));
+    // +-Inf is never a no-data marker (parse() rejects it with the sample's offset): a bin
+    // holding +Inf would pass the lookup's ">= 0" test and shine infinitely.
+    for (size_t k = 0; k < raw_.size(); ++k)
+        if (std::isinf(raw_[k]))
+            throw std::invalid_argument("MerlBrdf: sample " + std::to_string(k) + " is " + (raw_[k] > 0 ? "inf" : "-inf") +
+                                        " (no-data markers are negative or NaN)");
     const uint64_t n = dims_.per_channel();
     for (uint64_t k = 0; k < n; ++k)
         for (int c = 0; c < 3; ++c)

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -292,6 +293,15 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
 std::vector<uint8_t> read_file_bytes(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_table_error(path, 0, "a readable file", std::strerror(errno));
+    // A directory opens too, and its "size" (seek to the end) can be 2^63 - 1 on ext4:
+    // nothing but a regular file is sized from seekg/tellg.
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (ec || st.type() != std::filesystem::file_type::regular)
+        throw_table_error(path, 0, "a regular file",
+                          ec ? ec.message()
+                             : st.type() == std::filesystem::file_type::directory ? std::string("a directory")
+                                                                                    : std::string("not a regular file"));
     in.seekg(0, std::ios::end);
     std::streamoff len = in.tellg();
     in.seekg(0, std::ios::beg);

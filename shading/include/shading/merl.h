@@ -53,7 +53,8 @@ public:
     // allocating; errors are TableError "NAME: offset N: expected X, found Y".
     static std::unique_ptr<MerlBrdf> parse(const uint8_t* data, size_t size, const std::string& name);
     static std::unique_ptr<MerlBrdf> load_file(const std::string& path);
-    // Raw (unscaled) channel-major samples, as in the file.
+    // Raw (unscaled) channel-major samples, as in the file. Throws std::invalid_argument on
+    // dimensions out of range, a sample count that does not match them, or any +-Inf sample.
     MerlBrdf(const MerlDims& dims, std::vector<double> raw, std::string name);
 
     struct Bin {
