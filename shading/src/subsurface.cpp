@@ -1,0 +1,272 @@
+// Hierarchical dipole subsurface scattering over sampled surface points; see subsurface.h.
+#include "shading/subsurface.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+#include "shading/finish.h"
+
+namespace shading {
+
+namespace {
+
+std::atomic<std::size_t> g_clouds{0}, g_points{0}, g_lookups{0}, g_visited{0};
+std::atomic<std::int64_t> g_build_ns{0};
+
+double box_distance(const Vec3& x, const Vec3& lo, const Vec3& hi) {
+    double dx = std::max({lo.x - x.x, 0.0, x.x - hi.x});
+    double dy = std::max({lo.y - x.y, 0.0, x.y - hi.y});
+    double dz = std::max({lo.z - x.z, 0.0, x.z - hi.z});
+    return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+constexpr int kLeafSize = 8;
+constexpr int kMaxDepth = 48;
+
+}  // namespace
+
+SubsurfaceStats subsurface_stats() {
+    SubsurfaceStats s;
+    s.clouds = g_clouds.load();
+    s.points = g_points.load();
+    s.lookups = g_lookups.load();
+    s.nodes_visited = g_visited.load();
+    s.build_seconds = double(g_build_ns.load()) * 1e-9;
+    return s;
+}
+
+// ---------------------------------------------------------------- PointCloud
+
+PointCloud::PointCloud(std::vector<SurfacePoint> points, double spacing, const Rgb& near)
+    : spacing_(spacing), near_(near), points_(std::move(points)) {
+    if (!points_.empty()) {
+        nodes_.reserve(points_.size() / 2 + 1);
+        nodes_.emplace_back();
+        build(0, 0, int(points_.size()), 0);
+    }
+}
+
+void PointCloud::build(int index, int first, int count, int depth) {
+    Node nd;
+    nd.first = first;
+    nd.count = count;
+    nd.lo = nd.hi = points_[first].p;
+    Vec3 weighted, plain;
+    double wsum = 0;
+    for (int i = first; i < first + count; ++i) {
+        const SurfacePoint& s = points_[i];
+        nd.lo = Vec3(std::min(nd.lo.x, s.p.x), std::min(nd.lo.y, s.p.y), std::min(nd.lo.z, s.p.z));
+        nd.hi = Vec3(std::max(nd.hi.x, s.p.x), std::max(nd.hi.y, s.p.y), std::max(nd.hi.z, s.p.z));
+        Rgb f = s.irradiance * s.area;
+        nd.flux += f;
+        nd.area += s.area;
+        double w = f.r + f.g + f.b;
+        weighted = weighted + s.p * w;
+        plain = plain + s.p * s.area;
+        wsum += w;
+    }
+    // The flux-weighted centre is where an aggregate's light comes from; an unlit node has
+    // no flux to place, its area-weighted centre is used.
+    nd.centre = wsum > 0 ? weighted * (1.0 / wsum) : (nd.area > 0 ? plain * (1.0 / nd.area) : nd.lo);
+    nd.diagonal = length(nd.hi - nd.lo);
+    nodes_[index] = nd;
+    if (count <= kLeafSize || depth >= kMaxDepth || nd.diagonal == 0.0) return;  // leaf
+
+    // Split into octants about the box centre (in place), keep the non-empty ones.
+    const Vec3 c = (nd.lo + nd.hi) * 0.5;
+    auto begin = points_.begin() + first, end = begin + count;
+    auto mz = std::partition(begin, end, [&](const SurfacePoint& s) { return s.p.z < c.z; });
+    auto my0 = std::partition(begin, mz, [&](const SurfacePoint& s) { return s.p.y < c.y; });
+    auto my1 = std::partition(mz, end, [&](const SurfacePoint& s) { return s.p.y < c.y; });
+    auto split_x = [&](std::vector<SurfacePoint>::iterator a, std::vector<SurfacePoint>::iterator b) {
+        return std::partition(a, b, [&](const SurfacePoint& s) { return s.p.x < c.x; });
+    };
+    auto mx0 = split_x(begin, my0), mx1 = split_x(my0, mz), mx2 = split_x(mz, my1), mx3 = split_x(my1, end);
+    const std::vector<SurfacePoint>::iterator bounds[9] = {begin, mx0, my0, mx1, mz, mx2, my1, mx3, end};
+    int ranges[8][2], n = 0;
+    for (int k = 0; k < 8; ++k) {
+        int a = int(bounds[k] - points_.begin()), b = int(bounds[k + 1] - points_.begin());
+        if (b > a) {
+            ranges[n][0] = a;
+            ranges[n][1] = b - a;
+            ++n;
+        }
+    }
+    if (n <= 1) return;  // cannot split further (all on one side of every plane): a leaf
+    const int child = int(nodes_.size());
+    nodes_.resize(nodes_.size() + n);
+    nodes_[index].child = child;
+    nodes_[index].children = n;
+    for (int k = 0; k < n; ++k) build(child + k, ranges[k][0], ranges[k][1], depth + 1);
+}
+
+double PointCloud::window(double r, double r0, double h) {
+    double t = (r - (r0 - h)) / (2.0 * h);
+    if (t <= 0) return 0.0;
+    if (t >= 1) return 1.0;
+    return t * t * (3.0 - 2.0 * t);
+}
+
+Rgb PointCloud::far_exitance(const Dipole& dipole, const Vec3& x, double r0, double h, double max_angle,
+                             double cutoff, std::size_t* visited) const {
+    Rgb sum;
+    if (nodes_.empty()) return sum;
+    std::size_t opened = 0;
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& nd = nodes_[stack[--top]];
+        ++opened;
+        const double dbox = box_distance(x, nd.lo, nd.hi);
+        if (dbox > cutoff) continue;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const SurfacePoint& s = points_[i];
+                const double r = length(x - s.p);
+                const double w = window(r, r0, h);
+                if (w > 0 && r <= cutoff) sum += dipole.rd(r) * s.irradiance * (s.area * w);
+            }
+            continue;
+        }
+        const double dc = length(x - nd.centre);
+        // Aggregate only nodes wholly beyond the window's ramp (w = 1 for all their points).
+        if (dbox > r0 + h && nd.diagonal < max_angle * dc) {
+            sum += dipole.rd(dc) * nd.flux;
+            continue;
+        }
+        for (int k = 0; k < nd.children; ++k) stack[top++] = nd.child + k;
+    }
+    if (visited) *visited += opened;
+    return sum;
+}
+
+Rgb PointCloud::far_exitance_exact(const Dipole& dipole, const Vec3& x, double r0, double h) const {
+    Rgb sum;
+    for (const SurfacePoint& s : points_) {
+        const double r = length(x - s.p);
+        const double w = window(r, r0, h);
+        if (w > 0) sum += dipole.rd(r) * s.irradiance * (s.area * w);
+    }
+    return sum;
+}
+
+CloudStats PointCloud::stats() const {
+    CloudStats s;
+    s.points = points_.size();
+    s.nodes = nodes_.size();
+    for (const SurfacePoint& p : points_) s.total_area += p.area;
+    return s;
+}
+
+// ---------------------------------------------------------------- Subsurface
+
+struct Subsurface::Entry {
+    std::once_flag once;
+    std::shared_ptr<const PointCloud> cloud;
+};
+
+Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings, FdrModel fdr)
+    : dipole_(medium, fdr), settings_(settings) {
+    if (!(settings_.max_angle > 0 && settings_.max_angle <= 2.0))
+        throw std::invalid_argument("dipole: error threshold must be in (0, 2], got " + std::to_string(settings_.max_angle));
+    if (!(settings_.spacing >= 0) || !std::isfinite(settings_.spacing))
+        throw std::invalid_argument("dipole: spacing must be >= 0 (0: automatic)");
+    for (int c = 0; c < 3; ++c) cutoff_ = std::max(cutoff_, dipole_.channel(c).radius_containing(1.0 - 1e-6));
+    transmit_handle_ = finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(medium.eta)));
+}
+
+Subsurface::~Subsurface() { finish_model_release(transmit_handle_); }
+
+double Subsurface::mean_free_path() const {
+    double l = 0;
+    for (int c = 0; c < 3; ++c) {
+        const DipoleChannel& ch = dipole_.channel(c);
+        if (!ch.empty) l = l == 0 ? ch.zr : std::min(l, ch.zr);
+    }
+    return l;
+}
+
+double Subsurface::sample_spacing(double extent) const {
+    if (settings_.spacing > 0) return settings_.spacing;
+    double fine = 0.5 * mean_free_path();
+    double cap = extent / std::max(1, settings_.max_lines);
+    double h = std::max(fine, cap);
+    return h > 0 ? h : 1.0;
+}
+
+const PointCloud& Subsurface::cloud(const void* key,
+                                    const std::function<std::vector<SurfacePoint>(double*)>& make_points) const {
+    std::shared_ptr<Entry> e;
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        auto& slot = entries_[key];
+        if (!slot) slot = std::make_shared<Entry>();
+        e = slot;
+    }
+    std::call_once(e->once, [&] {
+        auto t0 = std::chrono::steady_clock::now();
+        double h = 0;
+        std::vector<SurfacePoint> pts = make_points(&h);
+        if (!(h > 0)) h = 1.0;
+        auto cloud = std::make_shared<const PointCloud>(std::move(pts), h, near_reflectance(h));
+        g_clouds += 1;
+        g_points += cloud->points().size();
+        g_build_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+        e->cloud = std::move(cloud);
+    });
+    return *e->cloud;
+}
+
+Rgb Subsurface::near_reflectance(double h) const {
+    // (1 - w) = 1 below R0 - h: the closed-form disc integral; over the ramp, Simpson.
+    const double r0 = near_radius(h), a = std::max(0.0, r0 - h), b = r0 + h;
+    Rgb sum = dipole_.rd_disc(a);
+    const int n = 256;
+    const double step = (b - a) / n;
+    for (int i = 0; i <= n; ++i) {
+        const double r = a + i * step;
+        const double wt = (i == 0 || i == n) ? 1.0 : (i % 2 ? 4.0 : 2.0);
+        sum += dipole_.rd(r) * ((1.0 - PointCloud::window(r, r0, h)) * 2.0 * kPi * r * wt * step / 3.0);
+    }
+    return sum;
+}
+
+Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                         const Rgb& irradiance_here) const {
+    const double cos_o = dot(n, to_eye);
+    if (!(cos_o > 0)) return Rgb(0.0);
+    const double h = cloud.spacing(), r0 = near_radius(h);
+    std::size_t visited = 0;
+    Rgb m = cloud.far_exitance(dipole_, x, r0, h, settings_.max_angle, cutoff_, &visited);
+    g_lookups += 1;
+    g_visited += visited;
+    m += irradiance_here * cloud.near_reflectance();
+    return m * fresnel_transmittance(cos_o, dipole_.medium().eta);
+}
+
+// ---------------------------------------------------------------- BRDFs
+
+Rgb TransmittanceBrdf::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    return Rgb(fresnel_transmittance(wi.z, eta_) * kInvPi);
+}
+std::string TransmittanceBrdf::describe() const { return "transmittance(eta=" + std::to_string(eta_) + ")"; }
+
+DipoleSurfaceBrdf::DipoleSurfaceBrdf(std::shared_ptr<const Subsurface> s, BrdfPtr coat)
+    : s_(std::move(s)), coat_(std::move(coat)) {
+    if (!s_) throw std::invalid_argument("DipoleSurfaceBrdf: no subsurface");
+}
+Rgb DipoleSurfaceBrdf::f(const Vec3& wo, const Vec3& wi) const {
+    Rgb v = s_->settings().single_scatter ? s_->dipole().single_scatter_brdf(wo, wi) : Rgb(0.0);
+    if (coat_) v += coat_->f(wo, wi);
+    return v;
+}
+std::string DipoleSurfaceBrdf::describe() const {
+    return std::string("dipole(") + (s_->settings().single_scatter ? "single scattering" : "no single scattering") +
+           (coat_ ? ", coat " + coat_->describe() : "") + ")";
+}
+
+}  // namespace shading
