@@ -182,19 +182,28 @@ FitData fit_samples(const TableGrid& grid, const FitSampling& sp) {
     if (g.layout == TableLayout::Isotropic) {
         const uint32_t si = stride(0), sr = stride(1), sp2 = stride(2);
         const double cone = sp.peak_cone_deg * kDeg;
-        for (uint32_t i = 0; i < g.n[0]; i += si)
-            for (uint32_t r = 0; r < g.n[1]; ++r)
+        // Theta nodes at or beyond grazing_deg are all kept (each stands for itself): models
+        // that diverge at the grazing mirror pair differ most there.
+        auto graze = [&](int axis, uint32_t i) { return g.axis_deg(axis, i) >= sp.grazing_deg - 1e-9; };
+        for (uint32_t i = 0; i < g.n[0]; ++i) {
+            const bool gi = graze(0, i);
+            if (!gi && i % si != 0) continue;
+            const double wi_nodes = gi ? 1.0 : double(si);
+            for (uint32_t r = 0; r < g.n[1]; ++r) {
+                const bool gr = graze(1, r);
                 for (uint32_t p = 0; p < g.n[2]; ++p) {
                     uint32_t idx[4] = {i, r, p, 0};
                     Vec3 wo, wi;
                     node_directions(g, idx, wo, wi);
                     bool dense = angle_to_mirror(wo, wi) <= cone;
-                    bool coarse = r % sr == 0 && p % sp2 == 0;
+                    bool coarse = (gr || r % sr == 0) && p % sp2 == 0;
                     if (dense)
-                        add(grid.cell(i, r, p), idx, double(si));
+                        add(grid.cell(i, r, p), idx, wi_nodes);
                     else if (coarse)
-                        add(grid.cell(i, r, p), idx, double(si) * sr * sp2);
+                        add(grid.cell(i, r, p), idx, wi_nodes * (gr ? 1.0 : double(sr)) * sp2);
                 }
+            }
+        }
     } else {
         const uint32_t s0 = stride(0), s1 = stride(1), s2 = stride(2), s3 = stride(3);
         for (uint32_t i = 0; i < g.n[0]; i += s0)
@@ -638,6 +647,29 @@ double sample_error(const FitData& d, const Brdf& model) {
     return den > 0 ? std::sqrt(num / den) : 0.0;
 }
 
+// E over the samples without the `trim` fraction of sample x channels with the largest
+// relative residual: how a candidate fits the bulk of the data, blind to gross outliers.
+double trimmed_sample_error(const FitData& d, const Brdf& model, double trim) {
+    struct Term { double z, num, den; };
+    std::vector<Term> terms;
+    for (const FitSample& s : d.samples) {
+        Rgb m = model.f(s.wo, s.wi);
+        for (int c = 0; c < d.channels; ++c) {
+            double t = s.target[c], e = channel_of(m, c, d.channels) - t;
+            terms.push_back({std::abs(e) / (std::abs(t) + 1e-30), s.weight * e * e, s.weight * t * t});
+        }
+    }
+    size_t keep = terms.size() - size_t(trim * double(terms.size()));
+    std::nth_element(terms.begin(), terms.begin() + std::min(keep, terms.size() - 1), terms.end(),
+                     [](const Term& a, const Term& b) { return a.z < b.z; });
+    double num = 0, den = 0;
+    for (size_t k = 0; k < keep; ++k) {
+        num += terms[k].num;
+        den += terms[k].den;
+    }
+    return den > 0 ? std::sqrt(num / den) : 0.0;
+}
+
 }  // namespace
 
 std::vector<std::string> fit_families() {
@@ -754,10 +786,12 @@ FitResult fit_model(const FitData& data, const std::string& family, const FitOpt
         lm.x = u;
         LmOptions lo_opt;
         lo_opt.max_iterations = opt.max_iterations;
-        lo_opt.ftol = 1e-9;
+        lo_opt.ftol = 1e-8;
         lo_opt.xtol = 1e-8;
         lo_opt.fd_step = 1e-5;
         for (int round = 0; round < std::max(1, opt.irls_rounds); ++round) {
+            // Later rounds start from the previous solution: fewer iterations suffice.
+            lo_opt.max_iterations = round == 0 ? opt.max_iterations : std::max(1, opt.max_iterations / 3);
             if (ns > 0) lm = levenberg_marquardt(rfn, lm.x, lo, hi, lo_opt);
             Vector x = to_natural(fam, lm.x);
             std::vector<Rgb> S = pb.eval_bases(fam.bases(x)), coef;
@@ -765,18 +799,45 @@ FitResult fit_model(const FitData& data, const std::string& family, const FitOpt
             pb.solve_linear(S, nullptr, kd, coef);
             if (round + 1 < opt.irls_rounds) pb.reweight(S, kd, coef);
         }
-        Vector x = to_natural(fam, lm.x);
-        std::vector<Rgb> S = pb.eval_bases(fam.bases(x)), coef;
-        Rgb kd;
-        pb.solve_linear(S, nullptr, kd, coef);
-        SpecOut so = fam.spec(x, kd, coef, num6);
+        // The robust solution, and plain least squares from it: Cauchy weights also mute the
+        // large residuals of a family that cannot follow the data (misfit, not outliers), so
+        // the candidate that fits the bulk better (trimmed error: the 1 % worst residuals
+        // left out) is kept.
+        std::vector<std::pair<LmResult, SpecOut>> cands;
+        auto spec_of = [&](const LmResult& l) {
+            Vector x = to_natural(fam, l.x);
+            std::vector<Rgb> S = pb.eval_bases(fam.bases(x)), coef;
+            Rgb kd;
+            pb.solve_linear(S, nullptr, kd, coef);
+            return fam.spec(x, kd, coef, num6);
+        };
+        cands.push_back({lm, spec_of(lm)});
+        if (opt.irls_rounds > 1) {
+            std::fill(pb.h.begin(), pb.h.end(), 1.0);
+            LmResult plain = lm;
+            lo_opt.max_iterations = std::max(1, opt.max_iterations / 3);
+            if (ns > 0) plain = levenberg_marquardt(rfn, lm.x, lo, hi, lo_opt);
+            cands.push_back({plain, spec_of(plain)});
+        }
+        double best_trim = std::numeric_limits<double>::infinity();
+        size_t pick = 0;
+        for (size_t c = 0; c < cands.size(); ++c) {
+            double tr = trimmed_sample_error(data, *make_brdf(cands[c].second.spec), 0.01);
+            if (tr < best_trim) {
+                best_trim = tr;
+                pick = c;
+            }
+        }
+        lm = cands[pick].first;
+        const Vector x = to_natural(fam, lm.x);
+        SpecOut so = cands[pick].second;
         BrdfPtr model = make_brdf(so.spec);
-        double err = sample_error(data, *model);
+        double err = trimmed_sample_error(data, *model, 0.01);
         if (err < best_err) {
             best_err = err;
             res.spec = so.spec;
             res.energy_clamped = so.clamped;
-            res.sample_error = err;
+            res.sample_error = sample_error(data, *model);
             res.params.clear();
             // Standard errors of the shape parameters: Gauss-Newton covariance x residual variance.
             const double dof = double(data.samples.size() * data.channels) - double(ns) -

@@ -206,6 +206,24 @@ int cmd_convert(Args& a) {
     return 0;
 }
 
+int cmd_fill(Args& a) {
+    // The loader's fill policy (brdf_data/README.md, "No data and validation"), then write.
+    LoadOptions lo;
+    lo.nodata = NoDataPolicy::Fill;
+    auto t = load_table_file(a.pos[0], lo);
+    const std::string out = a.output();
+    TableGrid grid = unfold(*t);
+    BuildOptions bo;
+    bo.fold = a.has("--fold") || t->geometry().folded;
+    bo.name = out;
+    bo.description = t->info().description;
+    bo.prior_nodata_filled = t->info().nodata_filled;
+    auto table = build_table(std::move(grid), bo);
+    save_table_file(*table, out);
+    report_written(*table, out);
+    return 0;
+}
+
 int cmd_resample(Args& a) {
     auto src = load_table_file(a.pos[0]);
     const TableGeometry& sg = src->geometry();
@@ -600,6 +618,11 @@ const std::vector<Command>& commands() {
          "  --nodata reject  fail on the first such node, naming the MERL sample's byte offset\n"
          "  --fold           store theta_i <= theta_r only (lossless: MERL is reciprocal)\n",
          {"-o", "--step", "--channels", "--nodata"}, {"--fold"}, 1, 1, cmd_convert},
+        {"fill", "fill IN.brdf -o OUT.brdf [--fold]",
+         "Fill the no-data cells (NaN or negative values) of a table with the format's rule\n"
+         "(linear between the nearest valid nodes along phi, then theta_r, then theta_i; see\n"
+         "brdf_data/README.md) and write it; the header counts the cells filled.\n",
+         {"-o"}, {"--fold"}, 1, 1, cmd_fill},
         {"resample", "resample IN.brdf -o OUT.brdf --step S [--phi-step S] [--interp linear|nearest] [--fold|--unfold] [--channels N]",
          "Evaluate a table at the nodes of a new grid (same layout). Folding is kept unless\n"
          "--unfold; --fold folds an unfolded table.\n",

@@ -11,9 +11,11 @@
 //
 // How a fit works (fit_model):
 //  1. Samples: a 5-degree sub-grid of the table's nodes, plus every node within 15 deg of the
-//     mirror direction of wi (at the sub-grid's theta_i), weighted by cos(theta_i) times the
-//     number of table nodes each sample stands for, so the fitted loss estimates the full-grid
-//     metric's numerator. Tables coarser than 5 degrees use every node.
+//     mirror direction of wi (at the sub-grid's theta_i), plus every theta_i and theta_r node
+//     from 80 deg on (where models that diverge at the grazing mirror pair differ most),
+//     weighted by cos(theta_i) times the number of table nodes each sample stands for, so the
+//     fitted loss estimates the full-grid metric's numerator. Tables coarser than 5 degrees
+//     use every node.
 //  2. Diffuse first: kd is estimated as pi x the median value (per channel) over samples at
 //     least 60 deg from the mirror direction with theta_i, theta_r <= 60 deg.
 //  3. Lobe scan: for each start on a grid of the shape parameters (roughness, exponents),
@@ -26,7 +28,11 @@
 //     (the first from step 3's solution) every sample x channel gets the Cauchy weight
 //     1 / (1 + (z / (2.385 s))^2) of its relative residual z = (m - t)/(|t| + tau),
 //     tau = 0.05 x median |t|, s = 1.4826 x median |z| (a robust scale of multiplicative
-//     noise), so gross outliers lose their pull.
+//     noise), so gross outliers lose their pull. Cauchy weights also mute the large
+//     residuals of a family that cannot follow the data (misfit, not outliers), so plain
+//     least squares is run from the robust solution as well, and of the two (and of the
+//     restarts) the fit with the smaller trimmed error (E without the 1 % sample x channels
+//     of largest relative residual) is kept.
 // The result's spec is printed with 6 significant digits; errors are those of that spec.
 #pragma once
 
@@ -65,6 +71,7 @@ struct FitSample {
 struct FitSampling {
     double coarse_step_deg = 5;     // sub-grid spacing (rounded to a multiple of the table's step)
     double peak_cone_deg = 15;      // full-resolution cone around the mirror direction
+    double grazing_deg = 80;        // theta_i and theta_r nodes from here to 90 deg: all kept
 };
 
 struct FitData {
