@@ -2,13 +2,13 @@
 
 ``brdftool recommend`` weighs a fit's error against what the model costs to render. The cost
 of a family is measured here once and cached in ``build/costs.txt`` (the file brdftool reads
-by default), as the median over ``repeat`` alternating pairs of
+by default), as the median over ``repeat`` (5) alternating pairs of
 
     trace time (fork, sphere with ``brdf_model { "SPEC" }``)
     / trace time (stock, same sphere with ``finish { diffuse 0.6 phong 0.5 phong_size 40 }``)
 
-on a shading-bound scene: a sphere filling a 320x320 frame under four distant lights (one
-thread, no anti-aliasing; POV's own trace times, start-up and parsing excluded). ``table`` is
+on a shading-bound scene: a sphere filling a 640x640 frame under four distant lights (one
+thread, no anti-aliasing; POV's own trace CPU seconds, start-up and parsing excluded). ``table`` is
 a 1 degree ``brdf_table`` of the same material.
 
     python -m harness.cost            # measure if build/costs.txt is missing, print it
@@ -52,7 +52,7 @@ FAMILY_SPECS: Mapping[str, str] = {
 TABLE_SPEC = FAMILY_SPECS["microfacet d=tr"]
 
 LIGHTS = (DistantLight(0.0), DistantLight(40.0, 30.0), DistantLight(60.0, 160.0), DistantLight(75.0, 260.0))
-SIZE = 320
+SIZE = 640
 STOCK_FINISH = {"diffuse": 0.6, "phong": 0.5, "phong_size": 40.0}
 
 
@@ -62,12 +62,15 @@ def _scene(finish: dict) -> SphereScene:
 
 def _trace(scene: SphereScene, binary: str, files: Optional[dict] = None) -> float:
     res = runner.render(scene, binary, files=files or {}, threads=1)
-    if res.trace_seconds is None:
+    # CPU seconds of the trace (POV's "using 1 thread(s) with X CPU-seconds total"): less
+    # sensitive than wall time to other work on a shared machine.
+    t = res.stats.get("trace_cpu_time", res.trace_seconds)
+    if t is None:
         raise RuntimeError("POV printed no trace time")
-    return res.trace_seconds
+    return t
 
 
-def measure(repeat: int = 3, log: Optional[Callable[[str], None]] = None,
+def measure(repeat: int = 5, log: Optional[Callable[[str], None]] = None,
             families: Optional[Sequence[str]] = None) -> dict[str, float]:
     """Median trace-time ratio per family key (and ``table``), alternating with stock phong."""
     stock = _scene(STOCK_FINISH)
@@ -117,7 +120,7 @@ def read_costs(path: Path = COSTS_PATH) -> dict[str, float]:
     return out
 
 
-def ensure_costs(path: Path = COSTS_PATH, force: bool = False, repeat: int = 3,
+def ensure_costs(path: Path = COSTS_PATH, force: bool = False, repeat: int = 5,
                  log: Optional[Callable[[str], None]] = None) -> Path:
     """Measure and write the cost table unless it is already there (``force`` re-measures)."""
     path = Path(path)
@@ -135,7 +138,7 @@ def ensure_costs(path: Path = COSTS_PATH, force: bool = False, repeat: int = 3,
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.cost", description=__doc__.split("\n\n")[0])
     ap.add_argument("--force", action="store_true", help="measure again even if the file exists")
-    ap.add_argument("--repeat", type=int, default=3, help="alternating pairs per family (default 3)")
+    ap.add_argument("--repeat", type=int, default=5, help="alternating pairs per family (default 5)")
     ap.add_argument("-o", "--output", type=Path, default=COSTS_PATH, help=f"cost file (default {COSTS_PATH})")
     args = ap.parse_args(argv)
     path = ensure_costs(args.output, args.force, args.repeat, log=lambda s: print(s, file=sys.stderr, flush=True))
