@@ -815,24 +815,25 @@ FitResult fit_model(const FitData& data, const std::string& family, const FitOpt
         if (opt.irls_rounds > 1) {
             std::fill(pb.h.begin(), pb.h.end(), 1.0);
             LmResult plain = lm;
-            lo_opt.max_iterations = std::max(1, opt.max_iterations / 3);
-            if (ns > 0) plain = levenberg_marquardt(rfn, lm.x, lo, hi, lo_opt);
+            lo_opt.max_iterations = opt.max_iterations;
+            if (ns > 0) plain = levenberg_marquardt(rfn, u, lo, hi, lo_opt);  // from the scan's start
             cands.push_back({plain, spec_of(plain)});
         }
-        double best_trim = std::numeric_limits<double>::infinity();
+        // Plain least squares unless the robust fit follows the bulk of the data clearly
+        // better (trimmed error below 0.8 x plain's): outliers were present.
         size_t pick = 0;
-        for (size_t c = 0; c < cands.size(); ++c) {
-            double tr = trimmed_sample_error(data, *make_brdf(cands[c].second.spec), 0.01);
-            if (tr < best_trim) {
-                best_trim = tr;
-                pick = c;
-            }
+        if (cands.size() == 2) {
+            double tr_robust = trimmed_sample_error(data, *make_brdf(cands[0].second.spec), 0.01);
+            double tr_plain = trimmed_sample_error(data, *make_brdf(cands[1].second.spec), 0.01);
+            pick = tr_robust < 0.5 * tr_plain ? 0 : 1;
         }
         lm = cands[pick].first;
         const Vector x = to_natural(fam, lm.x);
         SpecOut so = cands[pick].second;
         BrdfPtr model = make_brdf(so.spec);
-        double err = trimmed_sample_error(data, *model, 0.01);
+        // Restarts compete on the plain error when plain fits were kept, on the trimmed one
+        // when the robust fit was (outliers would dominate the plain error).
+        double err = pick == 0 && cands.size() == 2 ? trimmed_sample_error(data, *model, 0.01) : sample_error(data, *model);
         if (err < best_err) {
             best_err = err;
             res.spec = so.spec;

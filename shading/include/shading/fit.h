@@ -30,9 +30,10 @@
 //     tau = 0.05 x median |t|, s = 1.4826 x median |z| (a robust scale of multiplicative
 //     noise), so gross outliers lose their pull. Cauchy weights also mute the large
 //     residuals of a family that cannot follow the data (misfit, not outliers), so plain
-//     least squares is run from the robust solution as well, and of the two (and of the
-//     restarts) the fit with the smaller trimmed error (E without the 1 % sample x channels
-//     of largest relative residual) is kept.
+//     least squares is run from the same start as well. The robust fit is kept only if its
+//     trimmed error (E without the 1 % sample x channels of largest relative residual) is
+//     below 0.5 x the plain fit's (clear evidence of outliers), else the plain one. Of the
+//     restarts, the smaller E wins (the trimmed E where the robust fit was kept).
 // The result's spec is printed with 6 significant digits; errors are those of that spec.
 #pragma once
 
