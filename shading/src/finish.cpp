@@ -2,6 +2,7 @@
 
 #include "shading/model_spec.h"
 #include "shading/models.h"
+#include "shading/subsurface.h"
 
 #include <algorithm>
 #include <array>
@@ -307,6 +308,23 @@ const std::vector<Rgb>& AlbedoNodes::get() const {
 std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf) {
     if (!brdf) throw std::invalid_argument("make_finish_model: no BRDF");
     return finish_model_around(std::make_shared<const AlbedoNodes>(std::move(brdf)));
+}
+
+std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coat, std::shared_ptr<const Subsurface> s) {
+    BrdfPtr coat_brdf;
+    if (coat) {
+        coat_brdf = coat->brdf;
+        if (auto d = std::dynamic_pointer_cast<const DipoleSurfaceBrdf>(coat_brdf)) coat_brdf = d->coat();
+    }
+    auto m = make_finish_model(std::make_shared<DipoleSurfaceBrdf>(s, coat_brdf));
+    if (coat) {
+        m->scale = coat->scale;
+        m->tint = coat->tint;
+        m->tangent = coat->tangent;
+        m->reflection_samples = coat->reflection_samples;
+    }
+    m->subsurface = std::move(s);
+    return m;
 }
 
 std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec) {

@@ -14,6 +14,7 @@ namespace {
 
 std::atomic<std::size_t> g_clouds{0}, g_points{0}, g_lookups{0}, g_visited{0};
 std::atomic<std::int64_t> g_build_ns{0};
+std::atomic<std::size_t> g_unbounded{0}, g_thin{0};
 
 double box_distance(const Vec3& x, const Vec3& lo, const Vec3& hi) {
     double dx = std::max({lo.x - x.x, 0.0, x.x - hi.x});
@@ -34,8 +35,13 @@ SubsurfaceStats subsurface_stats() {
     s.lookups = g_lookups.load();
     s.nodes_visited = g_visited.load();
     s.build_seconds = double(g_build_ns.load()) * 1e-9;
+    s.unbounded = g_unbounded.load();
+    s.thin = g_thin.load();
     return s;
 }
+
+void subsurface_note_unbounded() { ++g_unbounded; }
+void subsurface_note_thin() { ++g_thin; }
 
 // ---------------------------------------------------------------- PointCloud
 

@@ -187,3 +187,24 @@ TEST(Subsurface, BadSettingsAreRejected) {
     st.spacing = -1;
     EXPECT_THROW(Subsurface(marble(), st), std::invalid_argument);
 }
+
+TEST(Subsurface, FinishModelCarriesTheDipoleUnderItsCoat) {
+    auto s = std::make_shared<const Subsurface>(marble(), SubsurfaceSettings{});
+    auto coat = make_finish_model_from_spec("microfacet d=beckmann m=0.2 f=dielectric eta=1.5");
+    coat->scale = Rgb(2.0);
+    coat->reflection_samples = 8;
+    auto m = finish_model_with_subsurface(coat.get(), s);
+    EXPECT_EQ(m->subsurface, s);
+    EXPECT_EQ(m->scale.r, 2.0);
+    EXPECT_EQ(m->reflection_samples, 8);
+    Vec3 wo = normalize(Vec3(0.1, 0, 1)), wi = normalize(Vec3(-0.2, 0.1, 1));
+    EXPECT_NEAR(m->brdf->f(wo, wi).g, coat->brdf->f(wo, wi).g + s->dipole().single_scatter_brdf(wo, wi).g, 1e-12);
+    // A second dipole replaces the first instead of stacking single scattering twice.
+    auto s2 = std::make_shared<const Subsurface>(marble(), SubsurfaceSettings{});
+    auto m2 = finish_model_with_subsurface(m.get(), s2);
+    EXPECT_NEAR(m2->brdf->f(wo, wi).g, m->brdf->f(wo, wi).g, 1e-12);
+    EXPECT_EQ(m2->subsurface, s2);
+    // No coat: single scattering alone.
+    auto bare = finish_model_with_subsurface(nullptr, s);
+    EXPECT_NEAR(bare->brdf->f(wo, wi).g, s->dipole().single_scatter_brdf(wo, wi).g, 1e-15);
+}

@@ -18,6 +18,8 @@
 
 namespace shading {
 
+class Subsurface;  // subsurface.h
+
 // The directional albedo a(theta) of one BRDF at FinishModel::kAlbedoNodes angles, computed
 // on first use (thread-safe, std::call_once) and shared by every finish model of that BRDF:
 // declaring a finish costs nothing until a render needs its albedo (indirect light, fill
@@ -62,6 +64,9 @@ struct FinishModel {
     // (finish_indirect_weight), so no light is counted twice.
     int reflection_samples = 0;
     static constexpr int kMaxReflectionSamples = 4096;
+    // A `dipole { }` finish: the subsurface light (subsurface.h) the renderer adds at every
+    // point, while `brdf` holds its single scattering plus any coat (DipoleSurfaceBrdf).
+    std::shared_ptr<const Subsurface> subsurface;
 };
 
 // A finish model around `brdf`, its directional albedo to be computed on first use
@@ -72,6 +77,11 @@ std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf);
 // finishes that repeat a spec share its BRDF and its albedo (computed once, if ever).
 // Scale, tint and tangent of the returned (fresh) model are the caller's to set.
 std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec);
+
+// `coat` (may be null: no coat) with the subsurface `s` under it: a new model whose brdf is
+// DipoleSurfaceBrdf(s, coat's own BRDF without any earlier dipole), keeping the coat's scale,
+// tint, tangent and reflection samples. The albedo is recomputed (lazily) for the sum.
+std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coat, std::shared_ptr<const Subsurface> s);
 
 // The model's directional albedo at cos(theta) (linear between nodes; scale/tint not applied).
 Rgb finish_model_albedo(const FinishModel& model, double cos_theta);

@@ -106,8 +106,13 @@ struct SubsurfaceSettings {
 struct SubsurfaceStats {
     std::size_t clouds = 0, points = 0, lookups = 0, nodes_visited = 0;
     double build_seconds = 0;
+    std::size_t unbounded = 0;  // objects that could not be sampled (no finite bounding box)
+    std::size_t thin = 0;       // objects thinner than the mean free path in > 10 % of places
 };
 SubsurfaceStats subsurface_stats();
+// The adapter reports these (they become warnings in the statistics).
+void subsurface_note_unbounded();
+void subsurface_note_thin();
 
 // What one `dipole { }` finish holds: the medium, its settings, and the per-object clouds.
 class Subsurface {
@@ -184,6 +189,7 @@ public:
     bool anisotropic() const override { return coat_ && coat_->anisotropic(); }
     std::string describe() const override;
     Rgb lambert_base() const override { return coat_ ? coat_->lambert_base() : Rgb(0.0); }
+    const BrdfPtr& coat() const { return coat_; }
 
 private:
     std::shared_ptr<const Subsurface> s_;
