@@ -221,3 +221,28 @@ def plane_albedo_isotropic(albedo: float, mu0: float = 1.0) -> float:
     if albedo >= 1.0:
         return 1.0
     return float(1.0 - chandrasekhar_h(mu0, albedo)[0] * math.sqrt(1.0 - albedo))
+
+
+# ---------------------------------------------------------------------------------------------
+# Shadow edge: a half-plane lit, the other dark
+
+def half_plane_exitance(ch: Dipole, d, n: int = 200000) -> np.ndarray:
+    """Radiant exitance M(d) of a flat semi-infinite medium whose surface is lit with unit
+    transmitted irradiance on x > 0 only, at signed distance d from the edge (d > 0 lit):
+    M(d) = int Rd(r) 2 pi r frac(r, d) dr with frac the part of the circle of radius r around
+    the point that lies on the lit side (1 - acos(d/r)/pi for |d| < r). Far on the lit side
+    M -> Rd_total; far in the shadow M -> 0."""
+    d = np.atleast_1d(np.asarray(d, dtype=float))
+    if ch.empty:
+        return np.zeros_like(d)
+    rmax = 60.0 / max(ch.sigma_tr, 1e-3 * ch.sigma_t_prime) + float(np.abs(d).max())
+    u = (np.arange(n) + 0.5) / n
+    r = rmax * u * u
+    dr = 2.0 * rmax * u / n
+    w = ch.rd(r) * 2.0 * math.pi * r * dr
+    out = np.empty_like(d)
+    for k, dk in enumerate(d):
+        with np.errstate(invalid="ignore"):
+            frac = np.where(dk >= r, 1.0, np.where(dk <= -r, 0.0, 1.0 - np.arccos(np.clip(dk / r, -1, 1)) / math.pi))
+        out[k] = float(np.sum(w * frac))
+    return out

@@ -87,15 +87,19 @@ void finish_model_addref(int handle) {
 
 void finish_model_release(int handle) {
     if (handle == 0) return;
+    std::shared_ptr<const FinishModel> last;  // destroyed after the lock is released: a model
+                                              // may own handles itself (a dipole's light loop)
     Registry& r = registry();
-    std::lock_guard<std::mutex> lock(r.mutex);
-    Slot* s = r.slot(handle);
-    if (!s || s->refs <= 0) return;
-    if (--s->refs == 0) {
-        s->model.store(nullptr, std::memory_order_release);
-        s->owner.reset();
-        r.free_handles.push_back(handle);
-        --r.live;
+    {
+        std::lock_guard<std::mutex> lock(r.mutex);
+        Slot* s = r.slot(handle);
+        if (!s || s->refs <= 0) return;
+        if (--s->refs == 0) {
+            s->model.store(nullptr, std::memory_order_release);
+            last = std::move(s->owner);
+            r.free_handles.push_back(handle);
+            --r.live;
+        }
     }
 }
 

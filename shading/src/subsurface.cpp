@@ -76,6 +76,20 @@ void PointCloud::build(int index, int first, int count, int depth) {
     // The flux-weighted centre is where an aggregate's light comes from; an unlit node has
     // no flux to place, its area-weighted centre is used.
     nd.centre = wsum > 0 ? weighted * (1.0 / wsum) : (nd.area > 0 ? plain * (1.0 / nd.area) : nd.lo);
+    if (wsum > 0) {
+        for (int i = first; i < first + count; ++i) {
+            const SurfacePoint& s = points_[i];
+            Rgb f = s.irradiance * s.area;
+            const double w = (f.r + f.g + f.b) / wsum;
+            const Vec3 d = s.p - nd.centre;
+            nd.cov[0] += w * d.x * d.x;
+            nd.cov[1] += w * d.y * d.y;
+            nd.cov[2] += w * d.z * d.z;
+            nd.cov[3] += w * d.x * d.y;
+            nd.cov[4] += w * d.x * d.z;
+            nd.cov[5] += w * d.y * d.z;
+        }
+    }
     nd.diagonal = length(nd.hi - nd.lo);
     nodes_[index] = nd;
     if (count <= kLeafSize || depth >= kMaxDepth || nd.diagonal == 0.0) return;  // leaf
@@ -140,7 +154,22 @@ Rgb PointCloud::far_exitance(const Dipole& dipole, const Vec3& x, double r0, dou
         const double dc = length(x - nd.centre);
         // Aggregate only nodes wholly beyond the window's ramp (w = 1 for all their points).
         if (dbox > r0 + h && nd.diagonal < max_angle * dc) {
-            sum += dipole.rd(dc) * nd.flux;
+            // f(|x - p|) averaged over the node ~ f(d) + (1/2) tr(H Sigma), H the Hessian in p:
+            // f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d; derivatives by central differences.
+            const Vec3 u = (nd.centre - x) * (1.0 / dc);
+            const double* C = nd.cov;
+            const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
+                               u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
+                               u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
+            const double trace = C[0] + C[1] + C[2];
+            const double e = 1e-3 * dc;
+            const Rgb f0 = dipole.rd(dc), fp = dipole.rd(dc + e), fm = dipole.rd(dc - e);
+            Rgb avg;
+            for (int k = 0; k < 3; ++k) {
+                const double d1 = (fp[k] - fm[k]) / (2 * e), d2 = (fp[k] - 2 * f0[k] + fm[k]) / (e * e);
+                avg[k] = std::max(0.0, f0[k] + 0.5 * (d2 * uCu + d1 / dc * (trace - uCu)));
+            }
+            sum += avg * nd.flux;
             continue;
         }
         for (int k = 0; k < nd.children; ++k) stack[top++] = nd.child + k;

@@ -208,3 +208,17 @@ TEST(Subsurface, FinishModelCarriesTheDipoleUnderItsCoat) {
     auto bare = finish_model_with_subsurface(nullptr, s);
     EXPECT_NEAR(bare->brdf->f(wo, wi).g, s->dipole().single_scatter_brdf(wo, wi).g, 1e-15);
 }
+
+TEST(Subsurface, ReleasingTheLastFinishFreesItsOwnHandleWithoutDeadlock) {
+    // A dipole finish model owns a registered handle (its transmittance light loop): releasing
+    // the model's handle must destroy it outside the registry lock.
+    std::size_t before = finish_model_live_count();
+    {
+        auto s = std::make_shared<const Subsurface>(marble(), SubsurfaceSettings{});
+        int h = finish_model_register(finish_model_with_subsurface(nullptr, s));
+        EXPECT_EQ(finish_model_live_count(), before + 2);
+        s.reset();
+        finish_model_release(h);  // deadlocked before the fix
+    }
+    EXPECT_EQ(finish_model_live_count(), before);
+}

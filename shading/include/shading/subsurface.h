@@ -16,8 +16,9 @@
 //       near: E_t(x) * integral of (1 - w(r)) Rd(r) 2 pi r dr   (the surface taken as flat
 //             within R0 and lit like x: E_t(x) comes from the light loop at x itself);
 //       far:  sum_i w(r_i) Rd(r_i) A_i E_t,i over the samples (hierarchically, PointCloud).
-//     The near integral is where Rd diverges (r -> 0, Rd ~ 1/r^3): integrated analytically,
-//     not sampled, so there is nothing to regularise and no grid pattern for any spacing.
+//     The near integral holds Rd's sharp peak (finite at r = 0, but ~1/r^3 for zr << r << 1/
+//     sigma_tr): integrated analytically, not sampled, so nothing is regularised by hand and
+//     there is no grid pattern for any spacing.
 //  3. The single-scattering term is a BRDF (Dipole::single_scatter_brdf) lit by the ordinary
 //     light loop: the finish model's brdf includes it.
 // Lengths are scene units (Medium::mm_per_unit converts the published 1/mm coefficients).
@@ -64,8 +65,10 @@ public:
     // The far part of M(x): sum over points of w(r) Rd(r) A E_t per channel (window w of
     // NearField), with a node's aggregate used in place of its points when the node does not
     // contain x and its size seen from x is below `max_angle` (node diagonal / distance to its
-    // centre), and nodes farther than `cutoff` (scene units) from x skipped. `visited`
-    // (optional) counts nodes opened.
+    // centre), and nodes farther than `cutoff` (scene units) from x skipped. An aggregate is
+    // the node's flux times Rd at its centre plus the second-order term of Rd's Taylor
+    // expansion about the centre, (1/2) tr(H Sigma) with Sigma the node's covariance: the
+    // error falls from O(angle^2) to O(angle^4). `visited` (optional) counts nodes opened.
     Rgb far_exitance(const Dipole& dipole, const Vec3& x, double r0, double h, double max_angle, double cutoff,
                      std::size_t* visited = nullptr) const;
     // The same sum over every point, no aggregation and no cutoff: the reference.
@@ -81,6 +84,7 @@ private:
     struct Node {
         Vec3 lo, hi;         // bounds of the node's points
         Vec3 centre;         // flux-weighted (area-weighted if no flux) centre
+        double cov[6] = {0, 0, 0, 0, 0, 0};  // the same weights' covariance: xx yy zz xy xz yz
         Rgb flux;            // sum of A E_t
         double area = 0;     // sum of A
         double diagonal = 0; // |hi - lo|
@@ -97,7 +101,7 @@ private:
 
 struct SubsurfaceSettings {
     double spacing = 0;        // sample spacing in scene units; 0: automatic (sample_spacing())
-    double max_angle = 0.3;    // hierarchical error threshold (PointCloud::exitance)
+    double max_angle = 0.7;    // hierarchical error threshold (PointCloud::far_exitance)
     bool single_scatter = true;
     int max_lines = 200;       // automatic spacing: at most this many sample lines per bbox axis
 };
@@ -126,9 +130,9 @@ public:
     const SubsurfaceSettings& settings() const { return settings_; }
 
     // Sample spacing for an object whose bounding box has the given largest extent: the user's,
-    // or the larger of half the smallest channel's mean free path 1/sigma_t' (finer is
-    // pointless: the regularised Rd of a sample already averages over its own area) and
-    // extent / max_lines (bounds the point count).
+    // or the larger of half the smallest channel's mean free path 1/sigma_t' (finer gains
+    // nothing: the near field within 2h is integrated analytically) and extent / max_lines
+    // (bounds the point count; the shadow edges' resolution is then ~2h).
     double sample_spacing(double extent) const;
     // Rd is negligible (below 1e-6 of its integral) beyond this distance, every channel.
     double cutoff() const { return cutoff_; }
