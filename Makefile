@@ -56,7 +56,8 @@ QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
 PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
 
 .PHONY: all help deps fetch shading fork brdf-data venv demo test test-all test-unit test-py bench \
-        check-patches refresh-patches clean distclean
+        check-patches refresh-patches clean distclean \
+        fuzz sanitize sanitize-unit sanitize-tsan sanitize-fork
 
 all: $(FORK_BIN) $(POVCONF)/povray.conf $(POVCONF)/povray.ini ## Build the fork (fetch, verify, patch, configure, build)
 	@echo "fork: $(FORK_BIN)"
@@ -170,6 +171,58 @@ test-all: all venv ## Everything in `test` plus the slow renders
 bench: all venv ## Trace-time ratios (fork/stock, table/phong) and table image error vs step
 	$(PY) -m harness.bench
 	$(PY) -m harness.table_error
+
+# ---------------------------------------------------------------- robustness
+# Fuzzers (clang libFuzzer) for the .brdf and MERL readers, and sanitizer builds of the
+# library, its tests and the fork. Each build has its own directory; nothing here touches
+# build/shading, povray/ or build/bin.
+FUZZ_APT_PACKAGES := clang libclang-rt-dev
+FUZZ_BUILD     := $(BUILD)/fuzz
+FUZZ_SECONDS   ?= 60
+FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz
+SAN_FLAGS      := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -g
+SANITIZE_BUILD := $(BUILD)/sanitize
+TSAN_BUILD     := $(BUILD)/tsan
+ASAN_DIR       := $(BUILD)/asan
+ASAN_BIN       := $(ASAN_DIR)/povray-brdf
+# The fork's own configure line, with the sanitizers added and the sanitized library linked.
+# POV-Ray's own code keeps UBSan recoverable (reports are collected, the render goes on).
+POV_SAN_FLAGS  := -fsanitize=address,undefined -fno-omit-frame-pointer -g
+POV_ASAN_CONFIGURE_ARGS := $(subst LDFLAGS="-L$(TOP)/$(SHADING_BUILD)",LDFLAGS="-L$(TOP)/$(SANITIZE_BUILD) $(POV_SAN_FLAGS)",$(subst CXXFLAGS="$(POV_CXXFLAGS)",CXXFLAGS="$(POV_CXXFLAGS) $(POV_SAN_FLAGS)",$(POV_CONFIGURE_ARGS)))
+
+$(STAMPS)/deps-fuzz: mk/deps.sh | $(STAMPS)/deps
+	bash mk/deps.sh $(FUZZ_APT_PACKAGES)
+	@touch $@
+
+fuzz: $(STAMPS)/deps-fuzz ## libFuzzer on the .brdf and MERL readers, FUZZ_SECONDS (60) per target
+	@test -f $(FUZZ_BUILD)/build.ninja || CXX=clang++ cmake -S shading -B $(FUZZ_BUILD) -G Ninja \
+	  -DCMAKE_BUILD_TYPE=Release -DSHADING_TESTS=OFF -DSHADING_FUZZ=ON >/dev/null
+	cmake --build $(FUZZ_BUILD) -j $(JOBS) --target $(FUZZ_TARGETS)
+	bash mk/fuzz.sh $(FUZZ_BUILD) shading/fuzz/corpus $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
+sanitize: sanitize-unit sanitize-tsan sanitize-fork ## ASan+UBSan unit tests, TSan registry tests, ASan+UBSan fork on the harness scenes
+
+$(SANITIZE_BUILD)/libshading.a: FORCE | $(STAMPS)/deps
+	@test -f $(SANITIZE_BUILD)/build.ninja || cmake -S shading -B $(SANITIZE_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release \
+	  -DCMAKE_CXX_FLAGS="$(SAN_FLAGS)" -DCMAKE_EXE_LINKER_FLAGS="$(SAN_FLAGS)" >/dev/null
+	cmake --build $(SANITIZE_BUILD) -j $(JOBS) | { grep -vE '^(ninja: no work to do|\[0/2\] Re-checking globbed)' || true; }
+
+sanitize-unit: $(SANITIZE_BUILD)/libshading.a
+	cd $(SANITIZE_BUILD) && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
+	  ctest --output-on-failure -j $(JOBS)
+
+sanitize-tsan: $(STAMPS)/deps
+	@test -f $(TSAN_BUILD)/build.ninja || cmake -S shading -B $(TSAN_BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release \
+	  -DCMAKE_CXX_FLAGS="-fsanitize=thread -g" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
+	cmake --build $(TSAN_BUILD) -j $(JOBS) --target shading_tests
+	TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 $(TSAN_BUILD)/shading_tests \
+	  --gtest_filter='Threads.*:SharedTable.*:FinishRegistry.*:*Concurrent*'
+
+$(ASAN_BIN): $(FORK_BIN) $(SANITIZE_BUILD)/libshading.a mk/asan-fork.sh FORCE
+	bash mk/asan-fork.sh $(POVDIR) $(ASAN_DIR) $(JOBS) $(POV_ASAN_CONFIGURE_ARGS)
+
+sanitize-fork: $(ASAN_BIN) all venv brdf-data
+	bash mk/sanitize-fork.sh $(ASAN_BIN) $(PY) $(ASAN_DIR)/reports
 
 # ---------------------------------------------------------------- patch tooling
 check-patches: $(UPSTREAM_FILES) ## Apply the series to a pristine tree; fail on fuzz or offset

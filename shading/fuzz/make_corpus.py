@@ -1,0 +1,125 @@
+#!/usr/bin/env python3
+"""Writes the fuzzers' seed corpus (committed; re-run to regenerate, stdlib only).
+
+    python3 shading/fuzz/make_corpus.py build/shading/brdftool shading/fuzz/corpus
+
+table/: coarse tables made by brdftool (15 and 30 deg steps: isotropic, folded, 1 channel,
+anisotropic, a simulated measurement with filled cells, a description), then broken
+variants of one of them (truncated, wrong magic, version, layout, node counts, steps,
+payload size, padding, trailing bytes, checksum) and valid-checksum payloads with NaN,
+negative and infinite values (the no-data paths).
+merl/: small non-standard MERL .binary files (dims 2x2x4 and 3x4x6), with no-data samples,
+plus broken ones (truncated header, zero/negative/huge dims, short, long, +Inf).
+"""
+import math
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+
+
+def fnv1a64(data):
+    h = 0xCBF29CE484222325
+    for b in data:
+        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def refresh_checksum(d):
+    d = bytearray(d)
+    off = struct.unpack_from("<I", d, 12)[0]
+    struct.pack_into("<Q", d, 88, fnv1a64(d[off:]))
+    return bytes(d)
+
+
+def main(brdftool, out):
+    tdir, mdir = os.path.join(out, "table"), os.path.join(out, "merl")
+    os.makedirs(tdir, exist_ok=True)
+    os.makedirs(mdir, exist_ok=True)
+
+    def put(directory, name, data):
+        with open(os.path.join(directory, name), "wb") as f:
+            f.write(data)
+
+    good = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = {
+            "lambert-30": ["tabulate", "lambert rho=0.5", "--step", "30"],
+            "lambert-30-fold": ["tabulate", "lambert rho=0.5", "--step", "30", "--fold"],
+            "phong-15-grey": ["tabulate", "phong_normalized kd=0.2 ks=0.5 n=30", "--step", "15", "--channels", "1"],
+            "microfacet-30-fold-grey": ["tabulate", "microfacet m=0.3 f=dielectric eta=1.5", "--step", "30",
+                                        "--fold", "--channels", "1"],
+            "ward-aniso-30-90": ["tabulate", "ward ax=0.05 ay=0.3 rho_s=0.25", "--layout", "aniso",
+                                 "--step", "30", "--phi-step", "90"],
+            "measured-15": ["measured-like", "lambert rho=0.4", "--step", "15", "--missing", "0.1", "--seed", "3"],
+        }
+        for name, args in runs.items():
+            path = os.path.join(tmp, name + ".brdf")
+            subprocess.run([brdftool, args[0], args[1], "-o", path, *args[2:]], check=True,
+                           stdout=subprocess.DEVNULL)
+            good[name] = open(path, "rb").read()
+            put(tdir, name + ".brdf", good[name])
+
+    base = good["lambert-30"]
+    off = struct.unpack_from("<I", base, 12)[0]
+
+    def patched(fmt, at, value, fix=False):
+        d = bytearray(base)
+        struct.pack_into(fmt, d, at, value)
+        return refresh_checksum(d) if fix else bytes(d)
+
+    bad = {
+        "empty": b"",
+        "magic-only": base[:8],
+        "truncated-header": base[:60],
+        "truncated-payload": base[:len(base) - 7],
+        "trailing-bytes": base + b"\0\0\0\0",
+        "wrong-magic": b"PVBRDX\0\0" + base[8:],
+        "version-2": patched("<I", 8, 2),
+        "layout-3": patched("<I", 16, 3),
+        "channels-2": patched("<I", 20, 2),
+        "flags-unknown": patched("<I", 24, 4),
+        "n0-huge": patched("<I", 32, 0xFFFFFFFF),
+        "n0-one": patched("<I", 32, 1),
+        "step-nan": patched("<d", 48, math.nan),
+        "payload-bytes-huge": patched("<Q", 80, 1 << 62),
+        "nodata-filled-huge": patched("<Q", 96, 1 << 40),
+        "description-huge": patched("<I", 104, 1 << 20),
+        "reserved-nonzero": patched("<I", 108, 1),
+        "checksum-wrong": patched("<Q", 88, 0),
+        "value-nan": patched("<f", off + 40, math.nan, fix=True),
+        "value-negative": patched("<f", off + 4, -1.0, fix=True),
+        "value-inf": patched("<f", off + 8, math.inf, fix=True),
+        "all-nan": refresh_checksum(base[:off] + struct.pack("<f", math.nan) * ((len(base) - off) // 4)),
+    }
+    for name, data in bad.items():
+        put(tdir, "bad-" + name + ".brdf", data)
+
+    # MERL: dims, then 3 channel-major planes of doubles.
+    def merl(dims, fill):
+        n = dims[0] * dims[1] * dims[2]
+        vals = [fill(c, k) for c in range(3) for k in range(n)]
+        return struct.pack("<3i", *dims) + struct.pack("<%dd" % len(vals), *vals)
+
+    put(mdir, "small-2x2x4.binary", merl((2, 2, 4), lambda c, k: 100.0 + 10 * c + k))
+    put(mdir, "small-3x4x6.binary", merl((3, 4, 6), lambda c, k: 0.5 * (k % 7) + c))
+    put(mdir, "nodata-3x4x6.binary", merl((3, 4, 6), lambda c, k: -1.0 if k % 5 == 0 else 50.0))
+    put(mdir, "nan-2x2x4.binary", merl((2, 2, 4), lambda c, k: math.nan if k == 3 else 1.0))
+    put(mdir, "all-nodata-2x2x4.binary", merl((2, 2, 4), lambda c, k: -1.0))
+    ok = merl((2, 2, 4), lambda c, k: 1.0)
+    put(mdir, "bad-empty.binary", b"")
+    put(mdir, "bad-header-short.binary", ok[:9])
+    put(mdir, "bad-truncated.binary", ok[:-3])
+    put(mdir, "bad-trailing.binary", ok + b"\0")
+    put(mdir, "bad-dim-zero.binary", struct.pack("<3i", 0, 2, 4) + ok[12:])
+    put(mdir, "bad-dim-negative.binary", struct.pack("<3i", 2, -2, 4) + ok[12:])
+    put(mdir, "bad-dim-huge.binary", struct.pack("<3i", 4096, 4096, 4096) + ok[12:])
+    put(mdir, "bad-dim-standard-short.binary", struct.pack("<3i", 90, 90, 180) + ok[12:])
+    put(mdir, "bad-inf.binary", merl((2, 2, 4), lambda c, k: math.inf if k == 5 else 1.0))
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    main(sys.argv[1], sys.argv[2])
