@@ -173,6 +173,22 @@ def _clean_env(home: Path) -> dict[str, str]:
     return env
 
 
+def _stage(src: Path, dst: Path) -> None:
+    """Put ``src`` into the job directory as ``dst``: a hard link, or a copy across file systems
+    (a directory is copied).
+
+    Not a symlink: with I/O restrictions on, POV-Ray resolves symlinks before checking a path,
+    so a symlink in the job directory to a file outside the permitted paths is refused.
+    """
+    if src.is_dir():
+        shutil.copytree(src, dst)
+        return
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copyfile(src, dst)
+
+
 def build_command(binary: Binary, width: int, height: int, float_exr: bool = False,
                   threads: int = 1, extra_args: Sequence[str] = ()) -> list[str]:
     """The command line the runner uses (relative names: run it in the job directory)."""
@@ -193,8 +209,9 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
     """Render ``scene`` (a :mod:`harness.scenes` dataclass, or ``.pov`` text) with ``binary``.
 
     ``width``/``height`` default to the scene's (required for text). ``files`` maps names in
-    the job directory to files symlinked there (tables, include files). ``workdir`` renders in
-    that directory and keeps it; otherwise a temporary one is removed afterwards.
+    the job directory to files staged there (hard links or copies: tables, include files).
+    ``workdir`` renders in that directory and keeps it; otherwise a temporary one is removed
+    afterwards.
     Raises :class:`RenderError` (with POV's message, file and line) when POV fails or writes
     no image, and :class:`harness.paths.BinaryNotFound` when the binary is missing.
     """
@@ -223,9 +240,11 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
         for name, src in (files or {}).items():
             dst = job / name
             dst.parent.mkdir(parents=True, exist_ok=True)
-            if dst.is_symlink() or dst.exists():
+            if dst.is_dir() and not dst.is_symlink():
+                shutil.rmtree(dst)
+            elif dst.is_symlink() or dst.exists():
                 dst.unlink()
-            dst.symlink_to(Path(src).resolve())
+            _stage(Path(src).resolve(), dst)
         out = job / OUTPUT_NAME
         if out.exists():
             out.unlink()
