@@ -1,0 +1,178 @@
+"""Bad values of the fork's finish keywords are POV-style scene errors at the right file and line.
+
+Every case renders a one-sphere scene whose finish sits on line 5 and checks the
+:class:`harness.runner.RenderError`: POV's message (what was wrong, in the loader's
+``NAME: offset N: expected X, found Y`` form for table files), ``file == "scene.pov"`` and
+``line == 5``. Broken tables are made from a valid 15-degree table (header fields patched,
+the checksum refreshed where the point is to reach a later check).
+
+``tests/test_brdf_finish.py`` already covers a missing file, a non-table file, a truncated
+table, ``interpolate 2``, an unknown microfacet ``d=`` and ``interpolate`` in ``brdf_model``;
+``tests/test_analytic_finishes.py`` covers ``samples`` -1 / 2.5 / 5000 in ``brdf_model``.
+The cases marked xfail are bugs of patch 0003 with a proposed fix in
+``out/brdf-finish-inputs.diff``; they pass (and must lose the marker) once it is applied.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import pytest
+
+from harness import runner, tables
+
+SCENE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ location -3*z look_at 0 }}
+light_source {{ <-3, 4, -5> rgb 1 }}
+sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ {finish} }} }}
+"""
+LINE = 5
+
+
+def fnv1a64(data: bytes) -> int:
+    h = 0xCBF29CE484222325
+    for b in data:
+        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+@pytest.fixture(scope="module")
+def table_files(tmp_path_factory):
+    good = tables.tabulated("lambert rho=0.5", step=15.0).read_bytes()
+    off = struct.unpack_from("<I", good, 12)[0]
+
+    def patched(fmt, at, value, refresh=False):
+        d = bytearray(good)
+        struct.pack_into(fmt, d, at, value)
+        if refresh:
+            struct.pack_into("<Q", d, 88, fnv1a64(bytes(d[off:])))
+        return bytes(d)
+
+    files = {
+        "good.brdf": good,
+        "empty.brdf": b"",
+        "header-only.brdf": good[:50],
+        "wrong-magic.brdf": b"PVBRDX\0\0" + good[8:],
+        "version-2.brdf": patched("<I", 8, 2),
+        "layout-3.brdf": patched("<I", 16, 3),
+        "nodes-huge.brdf": patched("<I", 32, 0xFFFFFFFF),
+        "payload-huge.brdf": patched("<Q", 80, 1 << 62),
+        "half.brdf": good[:len(good) // 2],
+        "trailing.brdf": good + b"\0" * 4,
+        "checksum.brdf": good[:off] + bytes([good[off] ^ 1]) + good[off + 1:],
+        "nan.brdf": patched("<f", off + 8, math.nan, refresh=True),
+        "negative.brdf": patched("<f", off + 8, -0.5, refresh=True),
+        "inf.brdf": patched("<f", off + 8, math.inf, refresh=True),
+    }
+    d = tmp_path_factory.mktemp("tables")
+    paths = {}
+    for name, data in files.items():
+        (d / name).write_bytes(data)
+        paths[name] = d / name
+    (d / "a-directory").mkdir()
+    paths["a-directory.brdf"] = d / "a-directory"
+    return paths
+
+
+def scene_error(fork, finish, files=None):
+    with pytest.raises(runner.RenderError) as ei:
+        runner.render(SCENE.format(finish=finish), fork, width=8, height=8, files=files)
+    e = ei.value
+    assert (e.file, e.line) == ("scene.pov", LINE), f"{e.file} line {e.line}: {e.message}\n{e.stderr[-1500:]}"
+    return e.message
+
+
+# ---------------------------------------------------------------- brdf_table files
+
+@pytest.mark.parametrize("name, message", [
+    ("empty.brdf", "brdf_table: empty.brdf: offset 0: expected 112-byte header, found end of data after 0 bytes"),
+    ("header-only.brdf", "brdf_table: header-only.brdf: offset 50: expected 112-byte header, found end of data after 50"),
+    ("wrong-magic.brdf", 'brdf_table: wrong-magic.brdf: offset 0: expected magic "PVBRDF\\x00\\x00", found "PVBRDX\\x00\\x00"'),
+    ("version-2.brdf", "brdf_table: version-2.brdf: offset 8: expected version 1, found 2"),
+    ("layout-3.brdf", "offset 16: expected layout 1 (isotropic) or 2 (anisotropic), found 3"),
+    ("nodes-huge.brdf", "offset 32: expected theta_i node count in [2, 9001], found 4294967295"),
+    ("payload-huge.brdf", "offset 80: expected payload size 7644 bytes"),
+    ("half.brdf", "brdf_table: half.brdf: offset 3894: expected 7788 bytes (7644-byte payload at offset 144), found end of data"),
+    ("trailing.brdf", "offset 7788: expected end of data, found 4 trailing bytes"),
+    ("checksum.brdf", "offset 88: expected payload FNV-1a-64"),
+    ("nan.brdf", "offset 152: expected a value >= 0 at theta_i=0 theta_r=0 phi=0 deg, channel 2 (no-data policy: reject), found nan"),
+    ("negative.brdf", "offset 152: expected a value >= 0 at theta_i=0 theta_r=0 phi=0 deg, channel 2 (no-data policy: reject), found -0.5"),
+    ("inf.brdf", "offset 152: expected a finite value at theta_i=0 theta_r=0 phi=0 deg, channel 2, found inf"),
+])
+def test_broken_table(fork, table_files, name, message):
+    msg = scene_error(fork, f'brdf_table {{ "{name}" }}', table_files)
+    assert message in msg, msg
+
+
+def test_table_named_by_a_missing_absolute_path(fork):
+    msg = scene_error(fork, 'brdf_table { "/nonexistent/dir/gold.brdf" }')
+    assert "cannot read '/nonexistent/dir/gold.brdf'" in msg, msg
+
+
+def test_directory_as_table_is_an_error_at_the_line(fork, table_files):
+    msg = scene_error(fork, 'brdf_table { "a-directory.brdf" }', table_files)
+    assert msg.startswith("Parse Error: brdf_table:"), msg
+
+
+@pytest.mark.xfail(strict=True, reason="patch 0003 sizes a directory as 2^63-1 bytes (std::bad_alloc); "
+                                       "fix: out/brdf-finish-inputs.diff")
+def test_directory_as_table_names_the_file(fork, table_files):
+    msg = scene_error(fork, 'brdf_table { "a-directory.brdf" }', table_files)
+    assert "brdf_table: a-directory.brdf: offset 0: expected a .brdf file" in msg, msg
+
+
+# ---------------------------------------------------------------- brdf_table / brdf_model options
+
+@pytest.mark.parametrize("finish, message", [
+    ('brdf_table { "good.brdf" interpolate -1 }', "interpolate must be 0 (nearest node) or 1 (trilinear), found -1"),
+    ('brdf_table { "good.brdf" scale -1 }', "brdf_table: scale must be finite and >= 0."),
+    ('brdf_table { "good.brdf" scale <1, -0.1, 1> }', "brdf_table: scale must be finite and >= 0."),
+    ('brdf_model { "lambert" scale (1e308*10)-(1e308*10) }', "brdf_model: scale must be finite and >= 0."),
+    ('brdf_table { "good.brdf" samples -1 }', "brdf_table: samples must be a whole number from 0 (off) to 4096, found -1."),
+    ('brdf_model { "lambert" samples (1e308*10)-(1e308*10) }', "brdf_model: samples must be a whole number"),
+])
+def test_bad_option(fork, table_files, finish, message):
+    msg = scene_error(fork, finish, table_files)
+    assert message in msg, msg
+
+
+@pytest.mark.xfail(strict=True, reason="patch 0003 accepts +inf (the check is only >= 0); "
+                                       "fix: out/brdf-finish-inputs.diff")
+def test_infinite_scale(fork):
+    msg = scene_error(fork, 'brdf_model { "lambert" scale 1e308*10 }')
+    assert "brdf_model: scale must be finite and >= 0." in msg, msg
+
+
+@pytest.mark.xfail(strict=True, reason="patch 0003 truncates interpolate to int before checking it (0.5 -> 0); "
+                                       "fix: out/brdf-finish-inputs.diff")
+def test_fractional_interpolate(fork, table_files):
+    msg = scene_error(fork, 'brdf_table { "good.brdf" interpolate 0.5 }', table_files)
+    assert "interpolate must be 0 (nearest node) or 1 (trilinear), found 0.5" in msg, msg
+
+
+# ---------------------------------------------------------------- brdf_model specs
+
+@pytest.mark.parametrize("spec, message", [
+    ("", "brdf_model: make_brdf: empty spec; expected '<model> key=value ...'"),
+    ("nosuchmodel", "brdf_model: make_brdf: unknown model 'nosuchmodel'; known: lambert,"),
+    ("lambert colour=1", "lambert: unknown key 'colour'"),
+    ("lambert rho=0.5 rho=0.6", "lambert: key 'rho': given more than once"),
+    ("lambert rho=", "lambert: key 'rho': empty number"),
+    ("lambert rho=abc", "lambert: key 'rho': not a number: 'abc'"),
+    ("lambert rho=1,2", "lambert: key 'rho': expected a scalar or r,g,b triple, got 2 numbers"),
+    ("lambert rho=2", "lambert: key 'rho': value 2 out of range [0, 1]"),
+    ("microfacet m=0", "microfacet: key 'm': value 0 out of range [0.0001, 1]"),
+    ("microfacet m=nan", "microfacet: key 'm': not finite: 'nan'"),
+    ("microfacet m=inf", "microfacet: key 'm': not finite: 'inf'"),
+    ("microfacet f=dielectric eta=0", "microfacet: key 'eta': value 0 out of range [0.01, 10]"),
+    ("microfacet f=dielectric eta=-1", "microfacet: key 'eta': value -1 out of range [0.01, 10]"),
+    ("microfacet f=conductor", "microfacet: key 'n': required"),
+    ("microfacet f=conductor n=0.2", "microfacet: key 'k': required"),
+    ("microfacet f=conductor k=3", "microfacet: key 'n': required"),
+    ("ward ax=0 ay=0.1", "ward: key 'ax': value 0 out of range"),
+])
+def test_bad_model_spec(fork, spec, message):
+    msg = scene_error(fork, f'brdf_model {{ "{spec}" }}')
+    assert message in msg, msg
