@@ -43,6 +43,53 @@ SubsurfaceStats subsurface_stats() {
 void subsurface_note_unbounded() { ++g_unbounded; }
 void subsurface_note_thin() { ++g_thin; }
 
+// ---------------------------------------------------------------- RdProfile
+
+RdProfile::RdProfile(const Dipole& dipole, double r_max, int nodes) : r_max_(r_max) {
+    if (!(r_max > 0) || !std::isfinite(r_max) || nodes < 2) throw std::invalid_argument("RdProfile: bad range");
+    r_s_ = r_max;
+    for (int c = 0; c < 3; ++c)
+        if (!dipole.channel(c).empty) r_s_ = std::min(r_s_, dipole.channel(c).zr);
+    const double L = std::log1p(r_max / r_s_);
+    inv_step_ = nodes / L;
+    f_.resize(nodes + 1);
+    d1_.resize(nodes + 1);
+    d2_.resize(nodes + 1);
+    for (int i = 0; i <= nodes; ++i) {
+        const double r = r_s_ * std::expm1(L * i / nodes);
+        // Derivatives by central differences, step 1e-3 of the local scale r + r_s; below
+        // r = e the even extension of Rd (a function of |r|) supplies the point at r - e.
+        const double e = 1e-3 * (r + r_s_);
+        const Rgb f0 = dipole.rd(r), fp = dipole.rd(r + e), fm = dipole.rd(std::fabs(r - e));
+        f_[i] = f0;
+        for (int k = 0; k < 3; ++k) {
+            d1_[i][k] = (fp[k] - fm[k]) / (2 * e);
+            d2_[i][k] = (fp[k] - 2 * f0[k] + fm[k]) / (e * e);
+        }
+    }
+}
+
+Rgb RdProfile::rd(double r) const {
+    if (!(r < r_max_)) return Rgb(0.0);
+    const double x = index(std::max(0.0, r));
+    const std::size_t i = std::min(std::size_t(x), f_.size() - 2);
+    const double u = x - double(i);
+    return f_[i] * (1.0 - u) + f_[i + 1] * u;
+}
+
+void RdProfile::eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const {
+    if (!(r < r_max_)) {
+        *f = *d1 = *d2 = Rgb(0.0);
+        return;
+    }
+    const double x = index(std::max(0.0, r));
+    const std::size_t i = std::min(std::size_t(x), f_.size() - 2);
+    const double u = x - double(i), v = 1.0 - u;
+    *f = f_[i] * v + f_[i + 1] * u;
+    *d1 = d1_[i] * v + d1_[i + 1] * u;
+    *d2 = d2_[i] * v + d2_[i + 1] * u;
+}
+
 // ---------------------------------------------------------------- PointCloud
 
 PointCloud::PointCloud(std::vector<SurfacePoint> points, double spacing, const Rgb& near)
@@ -129,7 +176,7 @@ double PointCloud::window(double r, double r0, double h) {
     return t * t * (3.0 - 2.0 * t);
 }
 
-Rgb PointCloud::far_exitance(const Dipole& dipole, const Vec3& x, double r0, double h, double max_angle,
+Rgb PointCloud::far_exitance(const RdProfile& rd, const Vec3& x, double r0, double h, double max_angle,
                              double cutoff, std::size_t* visited) const {
     Rgb sum;
     if (nodes_.empty()) return sum;
@@ -140,6 +187,8 @@ Rgb PointCloud::far_exitance(const Dipole& dipole, const Vec3& x, double r0, dou
     while (top > 0) {
         const Node& nd = nodes_[stack[--top]];
         ++opened;
+        // Unlit nodes (shadowed, facing away from every light) bring nothing.
+        if (!(nd.flux.max_component() > 0)) continue;
         const double dbox = box_distance(x, nd.lo, nd.hi);
         if (dbox > cutoff) continue;
         if (nd.child < 0) {
@@ -147,7 +196,7 @@ Rgb PointCloud::far_exitance(const Dipole& dipole, const Vec3& x, double r0, dou
                 const SurfacePoint& s = points_[i];
                 const double r = length(x - s.p);
                 const double w = window(r, r0, h);
-                if (w > 0 && r <= cutoff) sum += dipole.rd(r) * s.irradiance * (s.area * w);
+                if (w > 0 && r <= cutoff) sum += rd.rd(r) * s.irradiance * (s.area * w);
             }
             continue;
         }
@@ -155,20 +204,18 @@ Rgb PointCloud::far_exitance(const Dipole& dipole, const Vec3& x, double r0, dou
         // Aggregate only nodes wholly beyond the window's ramp (w = 1 for all their points).
         if (dbox > r0 + h && nd.diagonal < max_angle * dc) {
             // f(|x - p|) averaged over the node ~ f(d) + (1/2) tr(H Sigma), H the Hessian in p:
-            // f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d; derivatives by central differences.
+            // f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d (f' and f'' tabulated with f).
             const Vec3 u = (nd.centre - x) * (1.0 / dc);
             const double* C = nd.cov;
             const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
                                u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
                                u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
             const double trace = C[0] + C[1] + C[2];
-            const double e = 1e-3 * dc;
-            const Rgb f0 = dipole.rd(dc), fp = dipole.rd(dc + e), fm = dipole.rd(dc - e);
+            Rgb f0, f1, f2;
+            rd.eval(dc, &f0, &f1, &f2);
             Rgb avg;
-            for (int k = 0; k < 3; ++k) {
-                const double d1 = (fp[k] - fm[k]) / (2 * e), d2 = (fp[k] - 2 * f0[k] + fm[k]) / (e * e);
-                avg[k] = std::max(0.0, f0[k] + 0.5 * (d2 * uCu + d1 / dc * (trace - uCu)));
-            }
+            for (int k = 0; k < 3; ++k)
+                avg[k] = std::max(0.0, f0[k] + 0.5 * (f2[k] * uCu + f1[k] / dc * (trace - uCu)));
             sum += avg * nd.flux;
             continue;
         }
@@ -210,6 +257,12 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     if (!(settings_.spacing >= 0) || !std::isfinite(settings_.spacing))
         throw std::invalid_argument("dipole: spacing must be >= 0 (0: automatic)");
     for (int c = 0; c < 3; ++c) cutoff_ = std::max(cutoff_, dipole_.channel(c).radius_containing(1.0 - 1e-6));
+    // No absorption: Rd's tail is a power law and the cutoff grows without bound; a million
+    // transport lengths is the same 1e-6 of the reflectance for every channel there.
+    if (!std::isfinite(cutoff_) || !(cutoff_ > 0)) cutoff_ = 0;
+    for (int c = 0; c < 3; ++c)
+        if (!dipole_.channel(c).empty) cutoff_ = std::max(cutoff_, std::min(dipole_.channel(c).radius_containing(1.0 - 1e-6), 1e6 * dipole_.channel(c).zv));
+    profile_ = std::make_unique<RdProfile>(dipole_, cutoff_ > 0 ? cutoff_ : 1.0);
     transmit_handle_ = finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(medium.eta)));
 }
 
@@ -275,7 +328,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     if (!(cos_o > 0)) return Rgb(0.0);
     const double h = cloud.spacing(), r0 = near_radius(h);
     std::size_t visited = 0;
-    Rgb m = cloud.far_exitance(dipole_, x, r0, h, settings_.max_angle, cutoff_, &visited);
+    Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff_, &visited);
     g_lookups += 1;
     g_visited += visited;
     m += irradiance_here * cloud.near_reflectance();

@@ -34,7 +34,7 @@ std::vector<SurfacePoint> plane(double L, double h, const std::function<Rgb(doub
 Rgb exitance(const Subsurface& s, const PointCloud& c, const Vec3& x, const Rgb& e_here, bool exact) {
     const double h = c.spacing(), r0 = Subsurface::near_radius(h);
     Rgb far = exact ? c.far_exitance_exact(s.dipole(), x, r0, h)
-                    : c.far_exitance(s.dipole(), x, r0, h, s.settings().max_angle, s.cutoff());
+                    : c.far_exitance(s.profile(), x, r0, h, s.settings().max_angle, s.cutoff());
     return far + e_here * c.near_reflectance();
 }
 
@@ -119,7 +119,7 @@ TEST(Subsurface, HierarchyAgreesWithTheExactSumAndPrunes) {
     for (Vec3 x : {Vec3(0, 0, 0), Vec3(5.3, -2.1, 0), Vec3(39, 39, 0), Vec3(0, 0, 3.0)}) {
         Rgb exact = c.far_exitance_exact(s.dipole(), x, 2 * h, h);
         std::size_t visited = 0;
-        Rgb fast = c.far_exitance(s.dipole(), x, 2 * h, h, st.max_angle, s.cutoff(), &visited);
+        Rgb fast = c.far_exitance(s.profile(), x, 2 * h, h, st.max_angle, s.cutoff(), &visited);
         for (int k = 0; k < 3; ++k) EXPECT_NEAR(fast[k], exact[k], 0.01 * exact[k] + 1e-9) << k;
         EXPECT_LT(visited, c.points().size() / 20);  // far fewer nodes than points
     }
@@ -221,4 +221,30 @@ TEST(Subsurface, ReleasingTheLastFinishFreesItsOwnHandleWithoutDeadlock) {
         finish_model_release(h);  // deadlocked before the fix
     }
     EXPECT_EQ(finish_model_live_count(), before);
+}
+
+TEST(SubsurfaceRdProfile, TableMatchesTheAnalyticProfile) {
+    for (const Medium& m : {marble(), Medium::from_reduced(Rgb(1.0), Rgb(0.05), 1.3), Medium::from_reduced(Rgb(1.0), Rgb(0.0), 1.3)}) {
+        Subsurface s(m, SubsurfaceSettings{});
+        const RdProfile& p = s.profile();
+        double worst = 0, worst_d = 0, worst_d2 = 0;
+        for (int i = 0; i < 20000; ++i) {
+            double r = p.r_max() * std::pow((i + 0.37) / 20000.0, 3.0);
+            Rgb a = s.dipole().rd(r), f, d1, d2;
+            p.eval(r, &f, &d1, &d2);
+            for (int k = 0; k < 3; ++k) {
+                if (!(a[k] > 1e-9 * s.dipole().rd(0.0)[k])) continue;
+                worst = std::max(worst, std::abs(f[k] - a[k]) / a[k]);
+                double e = 1e-4 * std::max(r, 1e-3);
+                double num = (s.dipole().rd(r + e)[k] - s.dipole().rd(std::max(0.0, r - e))[k]) / (r + e - std::max(0.0, r - e));
+                if (r > 0.05 && std::abs(num) > 1e-6 * a[k]) worst_d = std::max(worst_d, std::abs(d1[k] - num) / std::abs(num));
+                double num2 = (s.dipole().rd(r + e)[k] - 2 * a[k] + s.dipole().rd(std::fabs(r - e))[k]) / (e * e);
+                if (r > 0.05 && std::abs(num2) > 1e-3 * a[k]) worst_d2 = std::max(worst_d2, std::abs(d2[k] - num2) / (std::abs(num2) + 1e-3 * a[k]));
+            }
+        }
+        EXPECT_LT(worst, 1e-4);
+        EXPECT_LT(worst_d, 1e-3);
+        EXPECT_LT(worst_d2, 2e-2);
+        EXPECT_EQ(p.rd(p.r_max() * 1.01).r, 0.0);
+    }
 }

@@ -47,6 +47,27 @@ struct SurfacePoint {
     Rgb irradiance;
 };
 
+// Rd(r) of a dipole per channel with its first two derivatives, tabulated once per medium on
+// r = r_s (exp(t L) - 1), t uniform in [0, 1], L = ln(1 + r_max / r_s), r_s the smallest
+// source depth zr: uniform within zr of the peak, logarithmic beyond (the same relative step
+// everywhere along the exponential or, without absorption, power-law tail); linear between
+// nodes; 0 beyond r_max. The octree's inner loop reads it instead of evaluating six
+// exponentials per lookup. Relative error below 1e-4 wherever Rd > 1e-9 Rd(0)
+// (SubsurfaceRdProfile test).
+class RdProfile {
+public:
+    RdProfile(const Dipole& dipole, double r_max, int nodes = 16384);
+    Rgb rd(double r) const;
+    // Rd and its derivatives d/dr, d2/dr2 at r.
+    void eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const;
+    double r_max() const { return r_max_; }
+
+private:
+    double index(double r) const { return std::log1p(r / r_s_) * inv_step_; }
+    double r_max_, r_s_ = 1, inv_step_ = 1;
+    std::vector<Rgb> f_, d1_, d2_;  // nodes + 1 samples each
+};
+
 struct CloudStats {
     std::size_t points = 0, nodes = 0;
     double total_area = 0;
@@ -69,7 +90,7 @@ public:
     // the node's flux times Rd at its centre plus the second-order term of Rd's Taylor
     // expansion about the centre, (1/2) tr(H Sigma) with Sigma the node's covariance: the
     // error falls from O(angle^2) to O(angle^4). `visited` (optional) counts nodes opened.
-    Rgb far_exitance(const Dipole& dipole, const Vec3& x, double r0, double h, double max_angle, double cutoff,
+    Rgb far_exitance(const RdProfile& rd, const Vec3& x, double r0, double h, double max_angle, double cutoff,
                      std::size_t* visited = nullptr) const;
     // The same sum over every point, no aggregation and no cutoff: the reference.
     Rgb far_exitance_exact(const Dipole& dipole, const Vec3& x, double r0, double h) const;
@@ -127,6 +148,7 @@ public:
     Subsurface& operator=(const Subsurface&) = delete;
 
     const Dipole& dipole() const { return dipole_; }
+    const RdProfile& profile() const { return *profile_; }
     const SubsurfaceSettings& settings() const { return settings_; }
 
     // Sample spacing for an object whose bounding box has the given largest extent: the user's,
@@ -166,6 +188,7 @@ private:
     Dipole dipole_;
     SubsurfaceSettings settings_;
     double cutoff_ = 0;
+    std::unique_ptr<RdProfile> profile_;
     int transmit_handle_ = 0;
     struct Entry;
     mutable std::mutex mutex_;
