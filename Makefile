@@ -55,7 +55,7 @@ QUILT_ENV := QUILT_PATCHES=$(TOP)/patches QUILT_PC=.pc-brdf QUILT_NO_DIFF_TIMEST
 QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
 PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
 
-.PHONY: all help deps fetch shading fork brdf-data venv demo test test-all test-unit test-py bench \
+.PHONY: all help deps fetch shading fork brdf-data venv demo test test-all test-unit test-py bench dg-compare \
         check-patches refresh-patches clean distclean \
         fuzz sanitize sanitize-unit sanitize-tsan sanitize-fork
 
@@ -131,7 +131,7 @@ $(FORK_BIN): $(POVDIR)/.configured $(POVDIR)/.patched $(LIBSHADING)
 	if [ -e $(POVDIR)/unix/povray ] && [ $(LIBSHADING) -nt $(POVDIR)/unix/povray ]; then rm -f $(POVDIR)/unix/povray; fi
 	$(MAKE) -C $(POVDIR) -j $(JOBS) >$(BUILD)/povray-build.log 2>&1 || { tail -40 $(BUILD)/povray-build.log; exit 1; }
 	@mkdir -p $(@D)
-	cp -p $(POVDIR)/unix/povray $@
+	cp -p $(POVDIR)/unix/povray $@.tmp && mv -f $@.tmp $@  # a rename: works while renders run the old one
 
 # The fork's own povray.conf/.ini (I/O restrictions on, library paths inside this tree).
 $(POVCONF)/%: conf/%.in Makefile
@@ -168,9 +168,14 @@ test-all: all venv ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q
 
-bench: all venv ## Trace-time ratios (fork/stock, table/phong) and table image error vs step
+bench: all venv ## Trace-time ratios (fork/stock, table/phong, every model, dipole/stock subsurface) and image errors
 	$(PY) -m harness.bench
 	$(PY) -m harness.table_error
+	$(PY) -m harness.model_bench
+	$(PY) -m harness.dipole_bench
+
+dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg.png and an error table
+	$(PY) -m harness.dg_compare
 
 # ---------------------------------------------------------------- robustness
 # Fuzzers (clang libFuzzer) for the .brdf and MERL readers, and sanitizer builds of the
@@ -245,3 +250,7 @@ $(STAMPS):
 
 .PHONY: FORCE
 FORCE:
+
+# Workflow targets that live in their own fragments (mk/targets/*.mk: report, regress, study,
+# install, ...), each with `## ` help text like the targets above.
+include $(sort $(wildcard mk/targets/*.mk))
