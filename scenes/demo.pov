@@ -1,7 +1,7 @@
 // povray-brdf demo: a still life of the fork's materials under one area light.
 //   back row, left to right: POV's own phong | red plastic, measured-like 1 deg table |
 //     gold, Cook-Torrance with measured n + ik, reflecting the scene through its lobe |
-//     brushed aluminium, anisotropic Ward (Ward 1992's fit) | a torus of rough copper (table)
+//     brushed aluminium, anisotropic Ward (Ward 1992's fit) | an egg of rough copper (table)
 //   front: a marble egg and a glass of whole milk (dipole subsurface, Jensen 2001 media)
 // `make demo` generates the tables (make brdf-data) and renders this to out/demo.png.
 #version 3.7;
@@ -24,7 +24,7 @@ sphere { <-2.0 * S, R, 1> R pigment { rgb <0.5, 0.06, 0.04> } finish { diffuse 1
 sphere { <-1.0 * S, R, 1> R finish { brdf_table { "red-plastic-measured.brdf" } } }
 sphere { < 0.0 * S, R, 1> R BRDF_Conductor_Glossy(BRDF_Gold_N, BRDF_Gold_K, 0.08, 16) }
 sphere { < 1.0 * S, R, 1> R finish { F_BRDF_Ward_Brushed_Aluminium } }
-torus { 0.5, 0.2 rotate x * 70 translate <2.0 * S, 0.72, 1> finish { brdf_table { "copper-rough.brdf" } } }
+sphere { 0, 1 scale <0.55, 0.75, 0.55> translate <2.0 * S, 0.75, 1> finish { brdf_table { "copper-rough.brdf" } } }
 
 // front row: translucent media
 sphere { 0, 0.55 scale <1, 1.3, 1> translate <-0.9, 0.55 * 1.3, -1.7> finish { F_Dipole_Marble specular 0.4 roughness 0.01 } }
