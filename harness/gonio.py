@@ -1,0 +1,186 @@
+"""Gonioreflectometer round trip: render a ``.brdf`` table on the virtual gonioreflectometer
+(:class:`harness.scenes.FlatSampleScene`) at a grid of (theta_i, theta_r, phi) and recover
+the table's values from the pixels.
+
+The table (``brdftool tabulate``, unfolded, 5 deg, RGB) is a Beckmann conductor lobe on a small
+Lambertian base, so values span three decades. Every pixel of a flat-sample render sees one
+direction pair, and ``f = pixel / (pi cos(theta_i) E)`` (:func:`harness.expect.measured_brdf`).
+
+* **on-node** angles (multiples of the step) must give the stored values;
+* **off-node** angles (cell centres: 12.5, 37.5, ... deg) must give the trilinear interpolation
+  of the stored values (:func:`table_lookup`, the lookup of ``brdf_data/README.md``);
+* the table itself differs from the model it tabulates between nodes: ``table vs model``
+  (interpolation error at 5 deg), printed for scale, never asserted here.
+
+    python -m harness.gonio            # the quick grid
+    python -m harness.gonio --full     # the report's grid
+
+``tests/test_gonio_roundtrip.py`` asserts the quick grid; ``harness.report`` shows the full one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from . import brdf_io, models, runner, tables
+from .expect import measured_brdf
+from .scenes import FlatSampleScene, spherical
+
+SPEC = "microfacet d=beckmann m=0.3 f=conductor n=0.143,0.374,1.442 k=3.983,2.385,1.603 kd=0.05 rho_s=0.95"
+STEP = 5.0
+#: Light colour: unequal channels, so a channel mix-up shows.
+LIGHT = (1.0, 0.7, 0.4)
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Angles in degrees; on-node values must be multiples of :data:`STEP`."""
+
+    nodes_theta: tuple[float, ...]
+    nodes_phi: tuple[float, ...]
+    off_theta: tuple[float, ...]
+    off_phi: tuple[float, ...]
+
+    def geometries(self) -> list[tuple[float, float, float, bool]]:
+        """(theta_i, theta_r, phi, on_node); one azimuth only where a direction is the pole."""
+        out = []
+        for thetas, phis, on in ((self.nodes_theta, self.nodes_phi, True), (self.off_theta, self.off_phi, False)):
+            for ti, tr in itertools.product(thetas, thetas):
+                for phi in (phis[:1] if (ti == 0.0 or tr == 0.0) else phis):
+                    out.append((ti, tr, phi, on))
+        return out
+
+
+QUICK = Grid((0.0, 30.0, 85.0), (0.0, 90.0, 180.0), (12.5, 62.5), (32.5, 167.5))
+FULL = Grid((0.0, 20.0, 40.0, 60.0, 75.0, 85.0), (0.0, 60.0, 120.0, 180.0),
+            (12.5, 37.5, 62.5, 82.5), (32.5, 102.5, 167.5))
+
+
+@dataclass
+class Point:
+    theta_i: float
+    theta_r: float
+    phi: float
+    on_node: bool
+    measured: np.ndarray  # RGB, 1/sr
+    table: np.ndarray     # the table's (interpolated) value
+    model: np.ndarray     # the analytic model it tabulates
+
+    @property
+    def rel_error(self) -> float:
+        """max over channels of |measured / table - 1|."""
+        return float(np.max(np.abs(self.measured / self.table - 1.0)))
+
+    @property
+    def table_vs_model(self) -> float:
+        return float(np.max(np.abs(self.table / self.model - 1.0)))
+
+
+def table_path() -> Path:
+    return tables.tabulated(SPEC, step=STEP, fold=False)
+
+
+def table_lookup(f: np.ndarray, theta_i: float, theta_r: float, phi: float) -> np.ndarray:
+    """Trilinear lookup of an unfolded isotropic table (n, n, 2n - 1, C) at angles in degrees."""
+    n0, n1, n2, _ = f.shape
+    phi = abs(phi) % 360.0
+    phi = 360.0 - phi if phi > 180.0 else phi
+    coords = []
+    for a, n, span in ((theta_i, n0, 90.0), (theta_r, n1, 90.0), (phi, n2, 180.0)):
+        u = min(max(a, 0.0), span) / (span / (n - 1))
+        k = min(int(math.floor(u)), n - 2)
+        coords.append((k, u - k))
+    (i, ti), (r, tr), (p, tp) = coords
+    out = 0.0
+    for di, dr, dp in itertools.product((0, 1), repeat=3):
+        w = (ti if di else 1 - ti) * (tr if dr else 1 - tr) * (tp if dp else 1 - tp)
+        out = out + w * f[i + di, r + dr, p + dp].astype(np.float64)
+    return np.asarray(out)
+
+
+def measure(grid: Grid = QUICK, workers: int = 2) -> list[Point]:
+    """Render every geometry of ``grid`` (fork, float EXR, 2 x 2 pixels) and recover f."""
+    path = table_path()
+    f, _ = brdf_io.read_brdf(path)
+    model = models.parse(SPEC)
+    geos = grid.geometries()
+    scenes = [FlatSampleScene(theta_i_deg=ti, theta_r_deg=tr, phi_deg=phi, light_colour=LIGHT,
+                              finish={"brdf_table": {"file": "t.brdf"}}, width=2, height=2)
+              for ti, tr, phi, _ in geos]
+    results = runner.render_many(scenes, binary="fork", float_exr=True, files={"t.brdf": path},
+                                 max_workers=workers, progress=False)
+    points = []
+    for (ti, tr, phi, on), s, res in zip(geos, scenes, results):
+        if not np.all(res.image == res.image[0, 0]):
+            raise AssertionError(f"pixels differ at {ti}, {tr}, {phi}: the sample is not seen uniformly")
+        fm = model.f(s.wo()[None, :], s.wi()[None, :])[0]
+        points.append(Point(ti, tr, phi, on, measured_brdf(res.image, s), table_lookup(f, ti, tr, phi), fm))
+    return points
+
+
+def summary(points: Sequence[Point]) -> list[dict]:
+    """One row per kind (on-node, off-node): count, max and rms relative error, table vs model."""
+    rows = []
+    for on, label in ((True, "on-node (stored values)"), (False, "off-node (trilinear between nodes)")):
+        pts = [p for p in points if p.on_node == on]
+        if not pts:
+            continue
+        e = np.array([p.rel_error for p in pts])
+        m = np.array([p.table_vs_model for p in pts])
+        rows.append({"angles": label, "points": len(pts), "max rel. error": float(e.max()),
+                     "rms rel. error": float(np.sqrt(np.mean(e ** 2))),
+                     "table vs model, max rel.": float(m.max())})
+    return rows
+
+
+def markdown(points: Sequence[Point]) -> str:
+    lines = ["| angles | points | max rel. error | rms rel. error | table vs model, max rel. |", "|---|---|---|---|---|"]
+    for r in summary(points):
+        lines.append(f"| {r['angles']} | {r['points']} | {r['max rel. error']:.1e} | {r['rms rel. error']:.1e} | "
+                     f"{r['table vs model, max rel.']:.1e} |")
+    return "\n".join(lines)
+
+
+def plot(points: Sequence[Point], path: Path) -> Path:
+    """Re-measured / table - 1 per geometry (log scale), and the table's own error vs the model."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8), dpi=100)
+    for on, colour, label in ((True, "tab:blue", "on-node"), (False, "tab:orange", "off-node")):
+        pts = [p for p in points if p.on_node == on]
+        x = [p.theta_i + p.theta_r / 100.0 for p in pts]
+        a.scatter(x, [max(p.rel_error, 1e-10) for p in pts], s=14, c=colour, label=label)
+        b.scatter(x, [max(p.table_vs_model, 1e-10) for p in pts], s=14, c=colour, label=label)
+    a.set(yscale="log", xlabel="θi (+ θr / 100), deg", ylabel="|re-measured / table − 1|, max RGB",
+          title="round trip: table → render → f")
+    b.set(yscale="log", xlabel="θi (+ θr / 100), deg", ylabel="|table / model − 1|, max RGB",
+          title=f"the {STEP:g}° table vs its model")
+    for ax in (a, b):
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(str(path))
+    plt.close(fig)
+    return Path(path)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.gonio", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--full", action="store_true", help="the report's grid (about 160 renders)")
+    args = ap.parse_args(argv)
+    print(markdown(measure(FULL if args.full else QUICK)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
