@@ -66,7 +66,8 @@ class RenderResult:
 
     ``image`` is float32 (H, W, 3), linear, row 0 at the top; ``exr_dtype`` says how the file
     stored it (``float16`` for stock). Times are POV's own, in seconds (None if not printed);
-    ``wall_seconds`` includes start-up (~0.6 s).
+    ``wall_seconds`` includes start-up (~0.6 s). ``peak_memory_bytes`` is POV's "Peak memory
+    used" where it prints one, else the process's peak resident set size (``stats["max_rss_bytes"]``).
     """
 
     image: np.ndarray
@@ -189,6 +190,52 @@ def _stage(src: Path, dst: Path) -> None:
         shutil.copyfile(src, dst)
 
 
+def _run_measured(cmd: Sequence[str], cwd: Path, env: Mapping[str, str],
+                  timeout: Optional[float]) -> tuple[Optional[int], str, str, Optional[int]]:
+    """Run ``cmd``; return ``(exit status or None on timeout, stdout, stderr, peak RSS bytes)``.
+
+    ``subprocess.run`` reaps the child without its resource usage, so the child is reaped
+    here with ``os.wait4`` (its ``ru_maxrss``, kB on Linux); the pipes are drained by threads
+    and a timer kills the child at ``timeout``.
+    """
+    proc = subprocess.Popen(cmd, cwd=cwd, env=dict(env), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    chunks: dict[str, bytes] = {}
+
+    def drain(name: str, pipe: Any) -> None:
+        chunks[name] = pipe.read()
+        pipe.close()
+
+    readers = [threading.Thread(target=drain, args=(n, p), daemon=True)
+               for n, p in (("out", proc.stdout), ("err", proc.stderr))]
+    for t in readers:
+        t.start()
+    timed_out = threading.Event()
+
+    def kill() -> None:
+        timed_out.set()
+        try:
+            proc.kill()
+        except OSError:
+            pass
+
+    timer = threading.Timer(timeout, kill) if timeout is not None else None
+    if timer is not None:
+        timer.start()
+    try:
+        _, status, usage = os.wait4(proc.pid, 0)
+    finally:
+        if timer is not None:
+            timer.cancel()
+    proc.returncode = os.waitstatus_to_exitcode(status)  # Popen must not wait for it again
+    for t in readers:
+        t.join()
+    out = chunks.get("out", b"").decode(errors="replace")
+    err = chunks.get("err", b"").decode(errors="replace")
+    rss = int(usage.ru_maxrss) * 1024 if usage.ru_maxrss > 0 else None
+    return (None if timed_out.is_set() else proc.returncode), out, err, rss
+
+
 def build_command(binary: Binary, width: int, height: int, float_exr: bool = False,
                   threads: int = 1, extra_args: Sequence[str] = ()) -> list[str]:
     """The command line the runner uses (relative names: run it in the job directory)."""
@@ -249,23 +296,24 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
         if out.exists():
             out.unlink()
         t0 = time.perf_counter()
-        try:
-            proc = subprocess.run(cmd, cwd=job, env=_clean_env(home), stdin=subprocess.DEVNULL,
-                                  capture_output=True, text=True, errors="replace", timeout=timeout)
-        except subprocess.TimeoutExpired as e:
-            err = e.stderr.decode(errors="replace") if isinstance(e.stderr, bytes) else (e.stderr or "")
-            raise RenderError(f"timed out after {timeout} s", command=cmd, stderr=err, pov_text=text) from None
+        returncode, stdout, stderr, max_rss = _run_measured(cmd, job, _clean_env(home), timeout)
         wall = time.perf_counter() - t0
-        stderr = proc.stderr + (proc.stdout or "")
-        if proc.returncode != 0 or not out.is_file():
+        stderr = stderr + stdout
+        if returncode is None:
+            raise RenderError(f"timed out after {timeout} s", command=cmd, stderr=stderr, pov_text=text)
+        if returncode != 0 or not out.is_file():
             msg, f, n = parse_error(stderr)
-            if proc.returncode == 0:
+            if returncode == 0:
                 msg = f"no output image written. {msg}"
-            raise RenderError(msg, file=f, line=n, returncode=proc.returncode, command=cmd,
+            raise RenderError(msg, file=f, line=n, returncode=returncode, command=cmd,
                               stderr=stderr, pov_text=text)
         img = exr.read_exr_full(out)
         stats = parse_stats(stderr)
-        mem = stats.get("peak_memory_bytes")
+        if max_rss is not None:
+            stats["max_rss_bytes"] = float(max_rss)
+        # POV 3.7's unix build prints no "Peak memory used" (a memory-debug build does): then
+        # the process's peak resident set size stands in for it.
+        mem = stats.get("peak_memory_bytes", stats.get("max_rss_bytes"))
         warnings = [f"{f} line {n}: {t}" for f, n, t in parse_messages(stderr) if "Warning" in t]
         return RenderResult(image=img.pixels, exr_dtype=img.stored_dtype,
                             trace_seconds=stats.get("trace_time"), parse_seconds=stats.get("parse_time"),

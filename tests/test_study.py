@@ -1,0 +1,118 @@
+"""harness.study: study files, local and Dask-distributed renders, the contact sheet and page.
+
+The Dask test starts a ``distributed.LocalCluster`` in this process (``processes=False``) on
+loopback TCP and sends a small study to its scheduler's address, as ``--scheduler`` would.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from harness import runner, study
+from harness.paths import REPO_ROOT
+
+SMALL = """
+title = "small test study"
+size = [48, 40]
+shapes = ["sphere"]
+lights = ["key"]
+
+[[material]]
+name = "lambert 10 deg table"
+table = "lam10.brdf"
+brdftool = ["tabulate", "lambert rho=0.6,0.4,0.2", "--step", "10"]
+
+[[material]]
+name = "beckmann model"
+model = "microfacet d=beckmann m=0.3 f=dielectric eta=1.5 kd=0.3 rho_s=0.5"
+
+[[material]]
+name = "marble"
+dipole = "Marble"
+mm_per_unit = 10
+"""
+
+
+@pytest.fixture
+def small_study(tmp_path):
+    p = tmp_path / "small.toml"
+    p.write_text(SMALL)
+    return study.load_study(p)
+
+
+def test_example_study_has_every_kind():
+    s = study.load_study(REPO_ROOT / "studies" / "example.toml")
+    assert len(s.materials) >= 12
+    assert {m.kind for m in s.materials} >= {"table", "model", "dipole", "finish"}
+    assert set(s.shapes) >= {"sphere", "torus", "blob"}
+    assert all(m.table is not None and m.table.is_file() for m in s.materials if m.kind == "table")
+    text = study.scene_text(s, s.materials[0], "sphere", s.lights and next(iter(s.lights)))
+    assert 'brdf_table { "gold.brdf" }' in text
+
+
+@pytest.mark.parametrize("bad, message", [
+    ('shapes = ["cube"]\n[[material]]\nname = "a"\nmodel = "lambert"', "unknown shape 'cube'"),
+    ('[[material]]\nname = "a"\nmodel = "lambert"\ndipole = "Marble"', "exactly one of"),
+    ('[[material]]\nname = "a"\nmodel = "lambert"\ninterpolate = 0', "interpolate applies to table"),
+    ('[[material]]\nname = "a"\ntable = "no-such.brdf"', "not found"),
+    ('size = [4, 4]\n[[material]]\nname = "a"\nmodel = "lambert"', "size"),
+    ('title = "x"', "no [[material]]"),
+])
+def test_bad_study_files(tmp_path, bad, message):
+    p = tmp_path / "bad.toml"
+    p.write_text(bad)
+    with pytest.raises(study.StudyError, match=message.replace("[", r"\[")):
+        study.load_study(p)
+
+
+def test_local_study_writes_sheet_page_and_numbers(fork, small_study, tmp_path):
+    out = tmp_path / "out"
+    summary = study.run(small_study, out, progress=False)
+    assert summary["renders"] == 3 and summary["failed"] == 0
+    for c in summary["cells"]:
+        assert c["trace_seconds"] is not None and c["peak_memory_bytes"] > 1e6, c
+    assert (out / "sheet.png").stat().st_size > 5000
+    page = (out / "index.html").read_text()
+    assert "lambert 10 deg table" in page and "trace" in page and " MB" in page
+    assert len(list((out / "plots").glob("*.png"))) == 1  # the one table material
+    assert study.main([str(small_study.path), "--out", str(tmp_path / "cli"), "-q"]) == 0
+
+
+def test_dask_scheduler_backend_matches_local(fork, small_study, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    local = study.run(small_study, tmp_path / "local", progress=False)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        remote = study.run(small_study, tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
+    assert remote["failed"] == 0 and remote["backend"].startswith("dask tcp://127.0.0.1:")
+    # the renders ran in the cluster's worker (here: threads of this process), not the local pool
+    assert {c["worker_pid"] for c in remote["cells"]} == {float(os.getpid())}
+    assert all(c["worker_pid"] is None for c in local["cells"])
+    assert [c["material"] for c in local["cells"]] == [c["material"] for c in remote["cells"]]
+    # the same pixels either way (renders are deterministic): one cell, through Dask and directly
+    job = runner.RenderJob(study.scene_text(small_study, small_study.materials[1], "sphere", "key"),
+                           {"width": 48, "height": 40, "float_exr": True})
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://",
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        [viadask] = study.render_dask([job], cluster.scheduler_address, progress=False)
+    direct = runner.render(job.scene, "fork", **job.options)
+    np.testing.assert_array_equal(viadask.image, direct.image)
+    assert json.loads((tmp_path / "dask" / "summary.json").read_text())["renders"] == 3
+
+
+def test_unreachable_scheduler_is_a_clear_error(small_study, tmp_path):
+    pytest.importorskip("distributed")
+    with pytest.raises(study.StudyError, match="cannot reach the Dask scheduler"):
+        study.render_dask([], "tcp://127.0.0.1:9", connect_timeout=1.0)
+
+
+def test_missing_dask_is_a_clear_error(monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
+    with pytest.raises(study.StudyError, match=r"pip install 'dask\[distributed\]'"):
+        study.render_dask([], "tcp://127.0.0.1:8786")
