@@ -9,8 +9,8 @@ the checksum refreshed where the point is to reach a later check).
 ``tests/test_brdf_finish.py`` already covers a missing file, a non-table file, a truncated
 table, ``interpolate 2``, an unknown microfacet ``d=`` and ``interpolate`` in ``brdf_model``;
 ``tests/test_analytic_finishes.py`` covers ``samples`` -1 / 2.5 / 5000 in ``brdf_model``.
-The cases marked xfail are bugs of patch 0003 with a proposed fix in
-``out/brdf-finish-inputs.diff``; they pass (and must lose the marker) once it is applied.
+A directory named as a table, an infinite scale and a fractional interpolate were bugs of
+patch 0003, found here and fixed there.
 """
 
 from __future__ import annotations
@@ -116,8 +116,6 @@ def test_directory_as_table_is_an_error_at_the_line(fork, table_files):
     assert msg.startswith("Parse Error: brdf_table:"), msg
 
 
-@pytest.mark.xfail(strict=True, reason="patch 0003 sizes a directory as 2^63-1 bytes (std::bad_alloc); "
-                                       "fix: out/brdf-finish-inputs.diff")
 def test_directory_as_table_names_the_file(fork, table_files):
     msg = scene_error(fork, 'brdf_table { "a-directory.brdf" }', table_files)
     assert "brdf_table: a-directory.brdf: offset 0: expected a .brdf file" in msg, msg
@@ -138,15 +136,11 @@ def test_bad_option(fork, table_files, finish, message):
     assert message in msg, msg
 
 
-@pytest.mark.xfail(strict=True, reason="patch 0003 accepts +inf (the check is only >= 0); "
-                                       "fix: out/brdf-finish-inputs.diff")
 def test_infinite_scale(fork):
     msg = scene_error(fork, 'brdf_model { "lambert" scale 1e308*10 }')
     assert "brdf_model: scale must be finite and >= 0." in msg, msg
 
 
-@pytest.mark.xfail(strict=True, reason="patch 0003 truncates interpolate to int before checking it (0.5 -> 0); "
-                                       "fix: out/brdf-finish-inputs.diff")
 def test_fractional_interpolate(fork, table_files):
     msg = scene_error(fork, 'brdf_table { "good.brdf" interpolate 0.5 }', table_files)
     assert "interpolate must be 0 (nearest node) or 1 (trilinear), found 0.5" in msg, msg
