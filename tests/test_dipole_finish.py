@@ -9,16 +9,15 @@ bleeds into the shadow over a few diffusion lengths.
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
 
-from harness import dipole_ref, runner
+from harness import dipole_bench, runner
 
-#: A medium with a short diffusion length (1/sigma_tr = 2.5 mm) so a 50 mm slab is
-#: "semi-infinite" for the profile: sigma_s' = 1/mm, sigma_a = 0.05/mm, eta = 1.3.
-SIGMA_S_PRIME, SIGMA_A, ETA = 1.0, 0.05, 1.3
+#: The medium of harness.dipole_bench (its closed-form reference too): a short diffusion length
+#: (1/sigma_tr = 2.5 mm) so a 50 mm slab is "semi-infinite": sigma_s' = 1/mm, sigma_a = 0.05/mm, eta 1.3.
+SIGMA_S_PRIME, SIGMA_A, ETA = dipole_bench.SIGMA_S_PRIME, dipole_bench.SIGMA_A, dipole_bench.ETA
 
 SLAB = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}
@@ -37,12 +36,7 @@ def slab(fork, dipole=DIPOLE, extra="", threads=1, width=160):
 
 
 def expected_profile(width=160):
-    x = ((np.arange(width) + 0.5) / width - 0.5) * 20.0
-    ch = dipole_ref.Dipole(SIGMA_S_PRIME, SIGMA_A, ETA)
-    ft = 1.0 - dipole_ref.fresnel_dielectric(1.0, ETA)
-    up = np.array([[0.0, 0.0, 1.0]])
-    ss = math.pi * dipole_ref.single_scatter_brdf(up, up, SIGMA_S_PRIME / (SIGMA_S_PRIME + SIGMA_A), 0.0, ETA)[0]
-    return x, ft * ft * dipole_ref.half_plane_exitance(ch, x) + np.where(x > 0, ss, 0.0)
+    return dipole_bench.reference(width)
 
 
 def test_shadow_edge_profile_matches_the_dipole(fork):

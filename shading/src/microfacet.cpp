@@ -282,38 +282,19 @@ Rgb Microfacet::f(const Vec3& wo, const Vec3& wi) const {
     return diffuse + rho_s * fresnel.eval(vh) * s;
 }
 
-double Microfacet::specular_probability() const {
-    double ws = rho_s.average(), wd = kd.average();
-    return ws + wd > 0 ? ws / (ws + wd) : 1.0;  // nothing reflects: any choice is valid
-}
+double Microfacet::specular_probability() const { return lobe_probability(rho_s, kd); }
 
 Vec3 Microfacet::sample(const Vec3& wo, double u1, double u2) const {
     return sample_mix(wo, u1, u2, specular_probability());
 }
 Vec3 Microfacet::sample_glossy(const Vec3& wo, double u1, double u2) const { return sample_mix(wo, u1, u2, 1.0); }
 Vec3 Microfacet::sample_mix(const Vec3& wo, double u1, double u2, double ps) const {
-    if (wo.z <= 0) return {};  // viewer below the surface: no reflection to sample
-    if (u1 < ps) {
-        Vec3 h = d.sample_h(std::min(u1 / ps, kOneMinusEps), u2);
-        Vec3 wi = reflect_about(wo, h);
-        // Mirrored below the horizon (includes V.h < 0): no sample; pdf() gives such wi 0.
-        return wi.z > 0 ? wi : Vec3();
-    }
-    // Cosine-weighted hemisphere for the diffuse base: density cos/pi.
-    double v = std::min((u1 - ps) / (1.0 - ps), kOneMinusEps);
-    double r = std::sqrt(v), phi = 2.0 * kPi * u2;
-    Vec3 wi(r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0 - v));
-    return wi;
+    return sample_lobe_or_cosine(wo, u1, u2, ps, [this](double a, double b) { return d.sample_h(a, b); });
 }
-
 double Microfacet::pdf(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, specular_probability()); }
 double Microfacet::pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, 1.0); }
 double Microfacet::pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const {
-    if (wo.z <= 0 || wi.z <= 0) return 0.0;  // sample() never returns such pairs
-    Vec3 h = half_vector(wo, wi);
-    // dw_h/dw_i = 1 / (4 V.h); V.h >= (N.V + N.L)/2 > 0 for a pair above the surface.
-    double spec = d.normalized(h.z) * h.z / (4.0 * dot(wo, h));
-    return ps * spec + (1.0 - ps) * wi.z * kInvPi;
+    return pdf_lobe_or_cosine(wo, wi, ps, [this](const Vec3& h) { return d.normalized(h.z) * h.z; });
 }
 
 std::string Microfacet::describe() const {

@@ -55,33 +55,19 @@ std::string Ward::describe() const {
     return std::string("ward(variant=") + (variant == WardVariant::Original ? "original" : "gmd") +
            " rho_d=" + fmt(rho_d) + " rho_s=" + fmt(rho_s) + " ax=" + fmt(ax) + " ay=" + fmt(ay) + ")";
 }
-double Ward::specular_probability() const {
-    double ws = rho_s.average(), wd = rho_d.average();
-    return ws + wd > 0 ? ws / (ws + wd) : 1.0;  // nothing reflects: any choice is valid
-}
+double Ward::specular_probability() const { return lobe_probability(rho_s, rho_d); }
 Vec3 Ward::sample(const Vec3& wo, double u1, double u2) const {
     return sample_mix(wo, u1, u2, specular_probability());
 }
 Vec3 Ward::sample_glossy(const Vec3& wo, double u1, double u2) const { return sample_mix(wo, u1, u2, 1.0); }
 Vec3 Ward::sample_mix(const Vec3& wo, double u1, double u2, double ps) const {
-    if (wo.z <= 0) return {};  // viewer below the surface: nothing to sample
-    if (u1 < ps) {
-        Vec3 h = sample_beckmann_aniso(ax, ay, std::min(u1 / ps, kOneMinusEps), u2);
-        Vec3 wi = reflect_about(wo, h);
-        return wi.z > 0 ? wi : Vec3();  // mirrored below the horizon: no sample (pdf 0 there)
-    }
-    double v = std::min((u1 - ps) / (1.0 - ps), kOneMinusEps);
-    double r = std::sqrt(v), phi = 2.0 * kPi * u2;
-    return {r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0 - v)};
+    return sample_lobe_or_cosine(wo, u1, u2, ps,
+                                 [this](double a, double b) { return sample_beckmann_aniso(ax, ay, a, b); });
 }
 double Ward::pdf(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, specular_probability()); }
 double Ward::pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf_mix(wo, wi, 1.0); }
 double Ward::pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const {
-    if (wo.z <= 0 || wi.z <= 0) return 0.0;  // sample() never returns such pairs
-    Vec3 h = half_vector(wo, wi);
-    // dw_h/dw_i = 1 / (4 V.h); V.h >= (N.V + N.L)/2 > 0 here.
-    double spec = d_beckmann_aniso(h, ax, ay) * h.z / (4.0 * dot(wo, h));
-    return ps * spec + (1.0 - ps) * wi.z * kInvPi;
+    return pdf_lobe_or_cosine(wo, wi, ps, [this](const Vec3& h) { return d_beckmann_aniso(h, ax, ay) * h.z; });
 }
 
 Rgb OrenNayar::f(const Vec3& wo, const Vec3& wi) const {

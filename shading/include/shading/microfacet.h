@@ -161,6 +161,34 @@ Vec3 sample_ggx(double alpha, double u1, double u2);
 // slope = sqrt(-ln(1-u1)) (ax cos 2pi u2, ay sin 2pi u2), h = normalize(-slope, 1).
 Vec3 sample_beckmann_aniso(double ax, double ay, double u1, double u2);
 
+// ---------------------------------------------------------------- lobe + diffuse mixtures
+// Shared by Microfacet and Ward: with probability ps a half vector h from `sample_h(u1', u2)`
+// (density D(h) cos theta_h) mirrored about h, otherwise cosine-weighted for a diffuse base.
+// No sample (zero vector) when wo is below the surface or the mirrored direction is.
+template <class SampleH>
+Vec3 sample_lobe_or_cosine(const Vec3& wo, double u1, double u2, double ps, const SampleH& sample_h) {
+    if (wo.z <= 0) return {};
+    if (u1 < ps) {
+        const Vec3 wi = reflect_about(wo, sample_h(std::min(u1 / ps, kOneMinusEps), u2));
+        return wi.z > 0 ? wi : Vec3();  // mirrored below the horizon (includes V.h < 0)
+    }
+    const double v = std::min((u1 - ps) / (1.0 - ps), kOneMinusEps), r = std::sqrt(v), phi = 2.0 * kPi * u2;
+    return {r * std::cos(phi), r * std::sin(phi), std::sqrt(1.0 - v)};
+}
+// Its density per solid angle of wi: ps D(h)(N.h) / (4 V.h) + (1 - ps) cos_i / pi, with
+// `d_cos(h)` = D(h) (N.h); dw_h/dw_i = 1/(4 V.h), V.h >= (N.V + N.L)/2 > 0 above the surface.
+template <class DCos>
+double pdf_lobe_or_cosine(const Vec3& wo, const Vec3& wi, double ps, const DCos& d_cos) {
+    if (wo.z <= 0 || wi.z <= 0) return 0.0;
+    const Vec3 h = half_vector(wo, wi);
+    return ps * d_cos(h) / (4.0 * dot(wo, h)) + (1.0 - ps) * wi.z * kInvPi;
+}
+// Probability of the lobe branch: in proportion to the average albedos (1 if both are 0).
+inline double lobe_probability(const Rgb& specular, const Rgb& diffuse) {
+    const double ws = specular.average(), wd = diffuse.average();
+    return ws + wd > 0 ? ws / (ws + wd) : 1.0;
+}
+
 // ---------------------------------------------------------------- one D term with its parameter
 
 enum class DKind { Blinn, Gaussian, TrowbridgeReitz, Beckmann };
