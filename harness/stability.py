@@ -36,6 +36,7 @@ slab profiles (edge pixels excluded, as in ``tests/test_dipole_finish.py``).
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import subprocess
 import sys
@@ -147,7 +148,7 @@ GRAZING_SPECS = (
     "lafortune kd=0.2 lobe=-1,-1,1,20,0.5 lobe=0.9,0.9,0.8,5,0.2",
 )
 #: Float32 pixels against float64 numpy: measured max |d|/peak <= 1e-7 on spheres and rims;
-#: a float ulp of a direction (6e-8) over the smallest rim cosine (0.04) allows 1.5e-6.
+#: a float ulp of a direction (6e-8) over the smallest rim cosine (0.07) allows ~1e-6.
 MODEL_LIMIT = 1.0e-5
 #: At 89.9 deg the cosine is 1.7e-3: float32 rounding of a direction (6e-8 / 1.7e-3 = 3.5e-5)
 #: may move a value that much relative; measured 4e-8.
@@ -172,10 +173,10 @@ def case_grazing_light_flat() -> CaseResult:
     acc = _Acc()
     scenes = [FlatSampleScene(theta_i_deg=89.9, theta_r_deg=tr, phi_deg=phi, finish=_model_finish(spec),
                               width=2, height=2)
-              for spec in GRAZING_SPECS for tr, phi in ((30.0, 180.0), (75.0, 60.0))]
+              for spec, (tr, phi) in zip(GRAZING_SPECS, itertools.cycle(((30.0, 180.0), (75.0, 60.0))))]
     for s, img in zip(scenes, _fork_all(scenes)):
         acc.err(_flat_rel_error(acc.image(img), s))
-    return acc.result("grazing light: flat sample, θi = 89.9° (6 models × 2 views)", "max rel. error vs numpy",
+    return acc.result("grazing light: flat sample, θi = 89.9° (6 models)", "max rel. error vs numpy",
                       GRAZING_FLAT_LIMIT)
 
 
@@ -183,26 +184,27 @@ def case_grazing_view_rim() -> CaseResult:
     acc = _Acc()
     lights = (DistantLight(0.0, 0.0, (0.4,) * 3), DistantLight(45.0, 30.0, (0.3,) * 3),
               DistantLight(80.0, 150.0, (0.5,) * 3))
-    n_rim = 0
-    scenes = [SphereScene(lights=lights, finish=_model_finish(spec), width=96, height=96) for spec in GRAZING_SPECS]
+    n_rim, cos_min = 0, 1.0
+    scenes = [SphereScene(lights=lights, finish=_model_finish(spec), width=80, height=80) for spec in GRAZING_SPECS]
     for s, img in zip(scenes, _fork_all(scenes)):
         acc.image(img)
         ss = surface_samples(s)
         rim = ss.mask & (-ss.normal[..., 2] < 0.15)
         n_rim = int(rim.sum())
+        cos_min = float((-ss.normal[..., 2])[rim].min())
         acc.err(_peak_error(img, expected_image(s), rim))
     return acc.result("grazing view: sphere rim pixels, cos θo < 0.15 (6 models)", "max |Δ| / rim peak vs numpy",
-                      MODEL_LIMIT, note=f"{n_rim} rim pixels per model")
+                      MODEL_LIMIT, note=f"{n_rim} rim pixels per model, cos θo down to {cos_min:.3f}")
 
 
 def case_grazing_view_flat() -> CaseResult:
     acc = _Acc()
     scenes = [FlatSampleScene(theta_i_deg=ti, theta_r_deg=89.9, phi_deg=phi, finish=_model_finish(spec),
                               width=2, height=2)
-              for spec in GRAZING_SPECS for ti, phi in ((30.0, 180.0), (89.9, 120.0))]
+              for spec, (ti, phi) in zip(GRAZING_SPECS, itertools.cycle(((30.0, 180.0), (89.9, 120.0))))]
     for s, img in zip(scenes, _fork_all(scenes)):
         acc.err(_flat_rel_error(acc.image(img), s))
-    return acc.result("grazing view: flat sample, θr = 89.9° (6 models × 2 lights)", "max rel. error vs numpy",
+    return acc.result("grazing view: flat sample, θr = 89.9° (6 models)", "max rel. error vs numpy",
                       GRAZING_FLAT_LIMIT)
 
 
