@@ -26,7 +26,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 
@@ -60,8 +60,8 @@ class Grid:
 
 
 QUICK = Grid((0.0, 30.0, 85.0), (0.0, 90.0, 180.0), (12.5, 62.5), (32.5, 167.5))
-FULL = Grid((0.0, 20.0, 40.0, 60.0, 75.0, 85.0), (0.0, 60.0, 120.0, 180.0),
-            (12.5, 37.5, 62.5, 82.5), (32.5, 102.5, 167.5))
+FULL = Grid((0.0, 20.0, 45.0, 70.0, 85.0), (0.0, 60.0, 120.0, 180.0),
+            (12.5, 37.5, 62.5, 82.5), (32.5, 167.5))
 
 
 @dataclass
@@ -149,25 +149,41 @@ def markdown(points: Sequence[Point]) -> str:
     return "\n".join(lines)
 
 
-def plot(points: Sequence[Point], path: Path) -> Path:
-    """Re-measured / table - 1 per geometry (log scale), and the table's own error vs the model."""
+def plot(points: Sequence[Point], path: Path, tol: float = 1e-6) -> Path:
+    """Left: re-measured against stored/interpolated values (log-log); right: the relative
+    error of each geometry, with the table's own error against its model for scale."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 3.8), dpi=100)
-    for on, colour, label in ((True, "tab:blue", "on-node"), (False, "tab:orange", "off-node")):
-        pts = [p for p in points if p.on_node == on]
-        x = [p.theta_i + p.theta_r / 100.0 for p in pts]
-        a.scatter(x, [max(p.rel_error, 1e-10) for p in pts], s=14, c=colour, label=label)
-        b.scatter(x, [max(p.table_vs_model, 1e-10) for p in pts], s=14, c=colour, label=label)
-    a.set(yscale="log", xlabel="θi (+ θr / 100), deg", ylabel="|re-measured / table − 1|, max RGB",
-          title="round trip: table → render → f")
-    b.set(yscale="log", xlabel="θi (+ θr / 100), deg", ylabel="|table / model − 1|, max RGB",
-          title=f"the {STEP:g}° table vs its model")
-    for ax in (a, b):
-        ax.grid(True, which="major", alpha=0.3)
-        ax.legend(fontsize=8)
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10.5, 4), dpi=100)
+    pts = sorted(points, key=lambda p: (not p.on_node, p.theta_i, p.theta_r, p.phi))
+    lo = min(float(p.table.min()) for p in pts)
+    hi = max(float(p.table.max()) for p in pts)
+    a.plot([lo / 2, hi * 2], [lo / 2, hi * 2], color="0.7", lw=1, zorder=0)
+    for c, colour in enumerate(("tab:red", "tab:green", "tab:blue")):
+        for on, marker in ((True, "o"), (False, "s")):
+            sel = [p for p in pts if p.on_node == on]
+            a.scatter([p.table[c] for p in sel], [p.measured[c] for p in sel], s=12, marker=marker,
+                      facecolors=colour if on else "none", edgecolors=colour,
+                      label=f"{'RGB'[c]}, {'on' if on else 'off'}-node")
+    a.set(xscale="log", yscale="log", xlabel="table value (stored or trilinear), 1/sr",
+          ylabel="re-measured f = pixel / (π cos θi E), 1/sr", title="Round trip: table → render → f")
+    a.legend(fontsize=7, ncol=2)
+    a.grid(True, which="major", alpha=0.3)
+    idx = np.arange(len(pts))
+    on = np.array([p.on_node for p in pts])
+    rt = np.array([max(p.rel_error, 1e-10) for p in pts])
+    tm = np.array([max(p.table_vs_model, 1e-10) for p in pts])
+    b.scatter(idx[on], rt[on], s=14, c="tab:blue", label="|re-measured / table − 1|, on-node")
+    b.scatter(idx[~on], rt[~on], s=14, c="tab:orange", label="|re-measured / table − 1|, off-node")
+    b.scatter(idx, tm, s=18, marker="x", c="0.45", label=f"|table / model − 1| ({STEP:g}° table)")
+    b.axhline(tol, color="tab:red", lw=1, ls="--", label=f"test tolerance {tol:g}")
+    b.set(yscale="log", xlabel="geometry (on-node first, by θi, θr, φ)", ylabel="relative error, max over RGB",
+          title="Relative error per geometry")
+    b.set_ylim(1e-10, 1.0)
+    b.legend(fontsize=7, loc="center right")
+    b.grid(True, which="major", alpha=0.3)
     fig.tight_layout()
     fig.savefig(str(path))
     plt.close(fig)
@@ -176,7 +192,7 @@ def plot(points: Sequence[Point], path: Path) -> Path:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.gonio", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--full", action="store_true", help="the report's grid (about 160 renders)")
+    ap.add_argument("--full", action="store_true", help="the report's grid (105 renders)")
     args = ap.parse_args(argv)
     print(markdown(measure(FULL if args.full else QUICK)))
     return 0
