@@ -10,13 +10,27 @@ shift 3
 tree=$dest/povray
 mkdir -p "$tree"
 
-# Refresh the copy: sources whose content changed get a new mtime (cp -p keeps the
-# original's, which is newer than the object when the patched tree changed).
-# configure's outputs stay the copy's own.
-tar -C "$src" --exclude='*.o' --exclude='*.a' --exclude='./unix/povray' --exclude='.pc*' \
-    --exclude=Makefile --exclude=config.status --exclude=config.log --exclude=config.h \
-    --exclude=stamp-h1 --exclude=.deps -cf - . |
-  tar -C "$tree" --keep-newer-files -xf - 2>/dev/null || true
+# Files configure writes, build outputs and quilt state stay the copy's own.
+prune=( \( -name '*.o' -o -name '*.a' -o -name .deps -o -name '.pc*' -o -name Makefile -o -name config.status
+        -o -name config.log -o -name config.h -o -name stamp-h1 -o -path ./unix/povray \) -prune -o )
+if [ ! -f "$tree/configure" ]; then
+  # First copy: everything else, times kept (nothing is built yet).
+  (cd "$src" && find . "${prune[@]}" \( -type f -o -type l \) -print0) |
+    tar -C "$src" --null -T - -cf - | tar -C "$tree" -xf -
+else
+  # Later: only what changed, by content, with a fresh time, so make rebuilds whatever
+  # depends on it (a copied time can be older than objects built from the previous copy).
+  (cd "$src" && find . "${prune[@]}" \( -type f -o -type l \) -print0) |
+    while IFS= read -r -d '' f; do
+      if [ -L "$src/$f" ]; then
+        [ "$(readlink "$src/$f")" = "$(readlink "$tree/$f" 2>/dev/null)" ] || { mkdir -p "$(dirname "$tree/$f")"; cp -Pf "$src/$f" "$tree/$f"; }
+      elif ! cmp -s "$src/$f" "$tree/$f"; then
+        mkdir -p "$(dirname "$tree/$f")"
+        rm -f "$tree/$f"
+        cp "$src/$f" "$tree/$f"
+      fi
+    done
+fi
 
 printf '%q ' "$@" > "$dest/configure-args.tmp"
 if ! cmp -s "$dest/configure-args.tmp" "$dest/configure-args" || [ ! -f "$tree/config.status" ] ||

@@ -2,10 +2,9 @@
 
 The fork's ``povray.conf`` (``conf/povray.conf.in`` -> ``build/conf``) says ``restricted``:
 scenes may read only the permitted paths and the current directory. POV-Ray 3.7.0.10's unix
-front end does not enforce any of it (four bugs in ``vfe/unix/unixoptions.cpp`` and
-``vfeplatform.cpp``, described in ``out/io-restriction.diff``, which fixes them): stock and
-fork read ``/etc/passwd`` as happily as a table in ``brdf_data/``. The tests that need the
-fix are strict xfails: once the patch is in the series they pass, and the markers go.
+front end enforces none of it (four bugs in ``vfe/unix/unixoptions.cpp`` and
+``vfeplatform.cpp``): stock still reads ``/etc/passwd`` as happily as a table in
+``brdf_data/``. Patch 0008 (``patches/0008-unix-io-restrictions.patch``) fixes them for the fork.
 
 With the fix, POV resolves symlinks before it checks a path, which is why
 :func:`harness.runner.render` stages files as hard links or copies, never symlinks.
@@ -29,8 +28,6 @@ camera {{ location -3*z look_at 0 }}
 light_source {{ <-3, 4, -5> rgb 1 }}
 sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ brdf_table {{ "{name}" }} }} }}
 """
-NOT_ENFORCED = ("POV-Ray 3.7.0.10's unix front end does not enforce povray.conf; "
-                "fix: out/io-restriction.diff")
 
 
 @pytest.fixture()
@@ -56,7 +53,6 @@ def test_table_in_the_current_directory_loads(fork):
     assert res.image.max() > 0
 
 
-@pytest.mark.xfail(strict=True, reason=NOT_ENFORCED)
 def test_table_outside_the_permitted_paths_is_refused(fork, outside_table):
     with pytest.raises(runner.RenderError) as ei:
         runner.render(SCENE.format(name=outside_table), fork, width=8, height=8)
@@ -66,7 +62,6 @@ def test_table_outside_the_permitted_paths_is_refused(fork, outside_table):
     assert f"reading from '{outside_table}' is not permitted" in e.stderr
 
 
-@pytest.mark.xfail(strict=True, reason=NOT_ENFORCED)
 def test_symlink_to_a_table_outside_is_refused(fork, outside_table, tmp_path):
     job = tmp_path / "job"
     job.mkdir()
