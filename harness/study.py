@@ -28,9 +28,11 @@ table materials. ``studies/example.toml`` documents the format; in short::
 
 Renders run as local parallel jobs (:func:`harness.runner.render_many`, ``--jobs`` at a
 time) or, with ``--scheduler ADDRESS``, on an existing Dask distributed scheduler
-(``tcp://host:8786``): each render is one task that runs :func:`harness.runner.render` on a
-worker. Workers need the fork and the study's tables at the same paths as here (a shared
-file system or the same checkout; ``POVRAY_BRDF`` on the worker overrides the binary).
+(``tcp://host:8786``): each render is one task (:func:`harness.dask_task.render_task`) that
+runs :func:`harness.runner.render` on a worker. The harness itself is uploaded to the
+scheduler and workers (they need numpy and OpenEXR, not a checkout); the fork binary and the
+study's tables must be at the same paths there as here (a shared file system or the same
+checkout; ``POVRAY_BRDF`` on a worker overrides the binary path).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 import time
 import tomllib
 from dataclasses import dataclass, field
@@ -266,11 +269,16 @@ def scene_text(study: Study, mat: Material, shape: str, light: str) -> str:
 
 # ---------------------------------------------------------------- rendering: local or Dask
 
-def _render_task(scene: str, options: dict) -> runner.RenderResult:
-    """One render on a Dask worker (module level, so it pickles by reference)."""
-    res = runner.render(scene, "fork", **options)
-    res.stats["worker_pid"] = float(os.getpid())
-    return res
+def _harness_zip(directory: Path) -> Path:
+    """The ``harness`` package (its .py files) as a zip, for ``Client.upload_file``."""
+    import zipfile
+
+    out = directory / "povray_brdf_harness.zip"
+    pkg = Path(__file__).resolve().parent
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(pkg.glob("*.py")):
+            z.write(f, f"harness/{f.name}")
+    return out
 
 
 def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool = True,
@@ -290,11 +298,21 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
         client = Client(scheduler, timeout=f"{connect_timeout}s")
     except (OSError, TimeoutError) as e:
         raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {e}") from None
-    with client:
+    from . import dask_task
+
+    fork = fork_binary()
+    with client, tempfile.TemporaryDirectory(prefix="study-dask-") as tmp:
+        # The scheduler and the workers may run elsewhere (another venv, no checkout): send
+        # them this harness (a zip placed first on their sys.path); they need the fork binary
+        # and the staged files at the same paths (or POVRAY_BRDF on the workers).
+        # (Not to a cluster inside this process, e.g. LocalCluster(processes=False): the upload
+        # would put the zip first on our own sys.path and reload our own harness from it.)
+        if jobs and client.run_on_scheduler(os.getpid) != os.getpid():
+            client.upload_file(str(_harness_zip(Path(tmp))), load=True)
         futures = {}
         for i, job in enumerate(jobs):
-            fut = client.submit(_render_task, job.scene, {**common, **job.options}, pure=False,
-                                key=f"povray-brdf-render-{i}-{os.getpid()}-{time.monotonic_ns()}")
+            fut = client.submit(dask_task.render_task, job.scene, {**common, **job.options}, str(fork.path),
+                                pure=False, key=f"povray-brdf-render-{i}-{os.getpid()}-{time.monotonic_ns()}")
             futures[fut] = i
         for fut in as_completed(futures):
             i = futures[fut]

@@ -87,7 +87,7 @@ def test_dask_scheduler_backend_matches_local(fork, small_study, tmp_path):
     distributed = pytest.importorskip("distributed")
     local = study.run(small_study, tmp_path / "local", progress=False)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
+                                  host="127.0.0.1", dashboard_address=":0") as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
         remote = study.run(small_study, tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
     assert remote["failed"] == 0 and remote["backend"].startswith("dask tcp://127.0.0.1:")
@@ -99,7 +99,7 @@ def test_dask_scheduler_backend_matches_local(fork, small_study, tmp_path):
     job = runner.RenderJob(study.scene_text(small_study, small_study.materials[1], "sphere", "key"),
                            {"width": 48, "height": 40, "float_exr": True})
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://",
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
+                                  host="127.0.0.1", dashboard_address=":0") as cluster:
         [viadask] = study.render_dask([job], cluster.scheduler_address, progress=False)
     direct = runner.render(job.scene, "fork", **job.options)
     np.testing.assert_array_equal(viadask.image, direct.image)
@@ -116,3 +116,45 @@ def test_missing_dask_is_a_clear_error(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # import fails
     with pytest.raises(study.StudyError, match=r"pip install 'dask\[distributed\]'"):
         study.render_dask([], "tcp://127.0.0.1:8786")
+
+
+@pytest.mark.slow
+def test_dask_cli_cluster_without_a_checkout(fork, small_study, tmp_path):
+    """A `dask scheduler` and a `dask worker` started outside the checkout (no harness on their
+    path): the study uploads the harness and renders on the worker process."""
+    pytest.importorskip("distributed")
+    import json as _json
+    import signal
+    import subprocess
+    import time
+
+    dask_cli = os.path.join(os.path.dirname(sys.executable), "dask")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    sched_file = tmp_path / "scheduler.json"
+    procs = [subprocess.Popen([dask_cli, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                               "--scheduler-file", str(sched_file)], cwd=tmp_path, env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(100):
+            if sched_file.is_file() and sched_file.stat().st_size:
+                break
+            time.sleep(0.2)
+        address = _json.loads(sched_file.read_text())["address"]
+        procs.append(subprocess.Popen([dask_cli, "worker", "--scheduler-file", str(sched_file), "--nthreads", "1",
+                                       "--host", "127.0.0.1", "--no-dashboard"], cwd=tmp_path, env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        distributed = pytest.importorskip("distributed")
+        with distributed.Client(address, timeout="30s") as c:
+            c.wait_for_workers(1, timeout=60)
+        summary = study.run(small_study, tmp_path / "out", scheduler=address, progress=False)
+        assert summary["failed"] == 0, [c["error"] for c in summary["cells"]]
+        pids = {c["worker_pid"] for c in summary["cells"]}  # the worker process (under its nanny)
+        assert len(pids) == 1 and float(os.getpid()) not in pids
+    finally:
+        for p in reversed(procs):
+            p.send_signal(signal.SIGTERM)
+        for p in reversed(procs):
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
