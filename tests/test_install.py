@@ -82,7 +82,9 @@ def test_installed_binary_renders_with_installed_conf(prefix, fork, tmp_path):
     shutil.copy(READY / "lambert-white.brdf", share / "brdf_data" / "only-installed.brdf")
     img, log = render(prefix / "bin" / "povray-brdf", tmp_path / "installed")
     assert "BRDF tables:" in log
-    assert np.isfinite(img).all() and img[16, 48].max() > 0.05 and img[16, 80].max() > 0.05
+    assert np.isfinite(img).all()
+    for third in (img[:, :32], img[:, 32:64], img[:, 64:]):  # gold table, copper satin, the extra table
+        assert third.max() > 0.05
     # the same pixels as the fork of the build tree, which finds the same files through its
     # build/conf (the extra table sits in its working directory)
     tree = tmp_path / "tree"
@@ -100,4 +102,5 @@ def test_uninstall_removes_everything(prefix, tmp_path):
     p = subprocess.run(["bash", str(REPO_ROOT / "mk" / "uninstall.sh"), str(prefix), str(dest)],
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
-    assert not any(p.is_file() for p in (dest / prefix.relative_to("/")).rglob("*"))
+    left = sorted(f.name for f in (dest / prefix.relative_to("/")).rglob("*") if f.is_file())
+    assert left in ([], ["only-installed.brdf"])  # a file it did not install stays
