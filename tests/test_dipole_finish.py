@@ -110,6 +110,7 @@ plane { y, 0 finish { ambient 0 dipole { "Marble" } } }
     ("sigma_a 0.1", "expected a preset name or sigma_s"),
     ("sigma_s 1 sigma_s_prime 1 sigma_a 0.1", "not both"),
     ('sigma_a 0.1 "Marble"', "preset name must come first"),
+    ('mm_per_unit 10 "Marble"', "preset name must come first"),
     ("sigma_s_prime -1 sigma_a 0.1", "sigma_s"),
     ("sigma_s_prime 1 sigma_a 0.1 ior 0", "eta"),
     ('"Marble" sample_spacing -1', "sample_spacing must be >= 0"),
