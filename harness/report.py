@@ -515,7 +515,7 @@ def plot_dipole(entries: Sequence[dict], width: int, path: Path) -> Optional[Pat
           title="Half-lit slab: profile error (grey: excluded)")
     a.set_ylim(-0.1, 0.1)
     a.grid(True, alpha=0.3)
-    a.legend(fontsize=7)
+    a.legend(fontsize=7, loc="lower left")
     for kind, colour, marker in (("dipole", "tab:red", "^-"), ("stock subsurface", "0.4", "x--")):
         sel = [e for e in dips if e["kind"] == kind and e.get("ratio")]
         if not sel:
@@ -689,7 +689,7 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
                              [r.row() for r in stab], anchor="stability",
                              notes="Each case rendered by the fork; NaN, Inf and negative samples counted over the "
                                    "whole image; the error against its limit where the case has one."))
-    notes = (f"{'Quick' if st.quick else 'Full'} run ({'python -m harness.report --quick' if st.quick else 'make report'}), "
+    notes = (f"{'Quick' if st.quick else 'Full'} run (python -m harness.report{' --quick' if st.quick else ''}), "
              f"{datetime.datetime.now().strftime('%Y-%m-%d %H:%M')}, commit {_git_commit()}, "
              f"{os.cpu_count()} CPUs, {platform.system()} {platform.machine()}, {wall:.0f} s; load average "
              f"{load0:.1f} at the start, {load1:.1f} at the end (other work on the machine skews the timings).")

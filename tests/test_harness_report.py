@@ -1,0 +1,90 @@
+"""harness.report: the page writer and the finish report's tables and plots, on synthetic
+numbers (no renders; ``make report`` renders)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from harness import report
+
+
+def entries(tmp_path):
+    m = tmp_path / "m.png"
+    m.write_bytes(b"\x89PNG\r\n\x1a\n")
+    out = [{"kind": "model", "label": "lambert", "spec": "lambert rho=0.6", "errors": [2e-8] * 4,
+            "rel_rmse": 2e-8, "map": m, "ratio": 1.1, "ratio_min": 1.0, "ratio_max": 1.2}]
+    for mat in ("a (x)", "b (y)"):
+        for step in (0.5, 1.0, 2.0, 5.0):
+            for interp in ("nearest", "trilinear"):
+                out.append({"kind": "table", "label": f"{mat}, {step:g}° {interp}", "material": mat,
+                            "step": step, "interp": interp, "rel_rmse": 1e-4 * step ** 2,
+                            "max_rel_bright": 1e-3 * step, "bytes": 1000, "map": m,
+                            "ratio": 1.2 if interp == "trilinear" else None,
+                            "ratio_min": 1.2, "ratio_max": 1.2})
+    for eb in (0.3, 0.7):
+        out.append({"kind": "dipole", "label": f"dipole, error_bound {eb:g}", "error_bound": eb, "rel_rmse": 1e-2,
+                    "rms_lit": 9e-3, "max_lit": 3e-2, "nodes": 300.0, "profile": np.zeros(80), "map": m,
+                    "ratio": 20.0 / eb, "ratio_min": 19.0, "ratio_max": 21.0})
+    out.append({"kind": "stock subsurface", "label": "stock subsurface, samples 25, 5", "error_bound": None,
+                "rel_rmse": 0.1, "rms_lit": 0.09, "max_lit": 0.2, "nodes": None, "profile": np.zeros(80),
+                "map": m, "ratio": 30.0, "ratio_min": 30.0, "ratio_max": 30.0})
+    return out
+
+
+def test_headline_has_every_finish_once(tmp_path):
+    rows = report.headline_rows(entries(tmp_path))
+    assert [r["kind"] for r in rows].count("table") == 8  # trilinear only
+    assert len(rows) == 1 + 8 + 3
+    assert rows[0]["trace / stock phong"] == "1.10 (1.00..1.20)"
+    assert rows[1]["trace / stock phong"] == "1.20"  # one round: no range
+    assert "| model | lambert | 2.0e-08 |" in report.markdown(entries(tmp_path))
+
+
+def test_plots_are_pngs(tmp_path):
+    e = entries(tmp_path)
+    for p in (report.plot_speed_error(e, tmp_path / "s.png"), report.plot_table_steps(e, tmp_path / "t.png"),
+              report.plot_dipole(e, 80, tmp_path / "d.png")):
+        assert p is not None and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert report.plot_speed_error([], tmp_path / "none.png") is None
+
+
+def test_write_page_sections_and_links(tmp_path):
+    img = tmp_path / "img" / "x.png"
+    img.parent.mkdir()
+    img.write_bytes(b"\x89PNG\r\n\x1a\n")
+    page = report.write_page(tmp_path / "rep" / "index.html", "T <1>", [
+        report.Section("First part", [{"a": 1.5, "ok": True, "map": img}], notes="n1\n\nn2", anchor="first"),
+        report.Section("Second", [{"b": "x"}], images=[("fig", img)]),
+    ], notes="top")
+    html = page.read_text()
+    assert "T &lt;1&gt;" in html and '<h2 id="first">First part</h2>' in html and 'href="#second"' in html
+    assert html.count("<table>") == 2 and 'src="../img/x.png"' in html and "pass" in html
+    assert html.count('<p class="note">') == 3
+
+
+def test_jsonable_round_trips(tmp_path):
+    d = report._jsonable({"a": np.float32(1.5), "b": np.arange(3), "c": float("nan"), "p": tmp_path, "t": (1, 2)})
+    assert json.loads(json.dumps(d, allow_nan=False)) == {"a": 1.5, "b": [0, 1, 2], "c": None, "p": str(tmp_path),
+                                                          "t": [1, 2]}
+
+
+def test_recording_sees_only_its_own_thread(monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+    from harness import runner
+
+    monkeypatch.setattr(runner, "render", lambda scene, *a, **kw: f"result {scene}")
+    orig = runner.render
+
+    def work(k):
+        with report.recording() as seen:
+            for i in range(50):
+                runner.render(f"{k}-{i}")
+        return seen
+
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(work, range(4)))
+    for k, seen in enumerate(got):
+        assert [s for s, _ in seen] == [f"{k}-{i}" for i in range(50)]
+    assert runner.render is orig  # unwrapped when the last block ends
