@@ -254,6 +254,16 @@ def recording() -> Iterator[list]:
                 runner.render = _rec_state["orig"]
 
 
+_plot_lock = threading.Lock()
+
+
+def _error_map(*args, **kw) -> Path:
+    """:func:`harness.compare.error_map_png`, one at a time (pyplot is not thread-safe)."""
+    from .compare import error_map_png
+    with _plot_lock:
+        return error_map_png(*args, **kw)
+
+
 def _parallel(fn: Callable, items: Sequence, workers: int) -> list:
     """``[fn(x) for x in items]``, ``workers`` at a time (threads: each render is a process)."""
     if workers <= 1 or len(items) <= 1:
@@ -323,7 +333,6 @@ def model_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
     """Every analytic model of :data:`harness.model_bench.MODELS`: errors and map; with the
     :class:`harness.bench.Row` that times it (:func:`harness.model_bench.cost_row`)."""
     from . import model_bench
-    from .compare import error_map_png
     from .expect import expected_image, surface_samples
 
     def one(item):
@@ -331,7 +340,7 @@ def model_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
         with recording() as seen:
             errs = model_bench.closed_form_errors(spec, st.model_size)
         scene, res = seen[model_bench.ANGLES.index(45.0)]
-        png = error_map_png(maps / f"model-{i:02d}.png", res.image, expected_image(scene),
+        png = _error_map(maps / f"model-{i:02d}.png", res.image, expected_image(scene),
                             mask=surface_samples(scene).mask, title=f"{label}\nfork − numpy, light 45°")
         log(f"model {label}: rel-RMSE {max(errs):.1e}")
         e = {"kind": "model", "label": label, "spec": spec, "errors": errs, "rel_rmse": max(errs), "map": png,
@@ -345,7 +354,6 @@ def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
     """Tables of :data:`harness.table_error.MATERIALS` at each step, nearest and trilinear;
     trilinear ones with the bench row that times them (the bench scene with the table)."""
     from . import bench, table_error, tables
-    from .compare import error_map_png
     from .expect import surface_samples
 
     def one(item):
@@ -358,7 +366,7 @@ def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
         for k, r in enumerate(rows):
             scene, res = seen[1 + k]
             assert scene.finish["brdf_table"]["interpolate"] == (0 if r["interp"] == "nearest" else 1)
-            png = error_map_png(maps / f"table-{mi}-{r['step']:g}-{r['interp']}.png", res.image, ref.image,
+            png = _error_map(maps / f"table-{mi}-{r['step']:g}-{r['interp']}.png", res.image, ref.image,
                                 mask=mask, relative=True,
                                 title=f"{label}, {r['step']:g}° {r['interp']}\n|table − model| / model")
             e = {"kind": "table", "label": f"{label}, {r['step']:g}° {r['interp']}", "material": label,
@@ -380,7 +388,7 @@ def dipole_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list
     """The fork's dipole at several error_bound values and stock subsurface on the half-lit slab,
     each with the bench row timing it against stock phong on the same slab."""
     from . import bench, dipole_bench
-    from .compare import error_map_png, rel_rmse
+    from .compare import rel_rmse
     x, want = dipole_bench.reference(st.dipole_width)
     lit = float(want[-1])
     keep = np.abs(x) >= 1.0  # dipole_bench's rule: 1 mm around the edge excluded
@@ -398,7 +406,7 @@ def dipole_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list
         ref = np.broadcast_to(want, img.shape)
         mask = np.broadcast_to(keep, img.shape)
         # every row of the slab sees the same profile: rows repeated 4x so the strip is readable
-        png = error_map_png(maps / f"dipole-{i}.png", np.repeat(img / lit, 4, axis=0),
+        png = _error_map(maps / f"dipole-{i}.png", np.repeat(img / lit, 4, axis=0),
                             np.repeat(ref / lit, 4, axis=0), mask=np.repeat(mask, 4, axis=0),
                             title=f"{label}\n(render − closed form) / lit level")
         e = {"kind": "dipole" if binary == "fork" else "stock subsurface", "label": label, "error_bound": eb,
