@@ -95,7 +95,16 @@ def model_keyword(name: str, value: Mapping[str, Any]) -> str:
     head = v.pop("file" if name == "brdf_table" else "spec")
     if '"' in str(head) or "\n" in str(head):
         raise ValueError(f"{name}: {head!r} contains a quote or newline")
-    parts = [f'"{head}"']
+    parts = [f'"{head}"'] + model_options(v)
+    if v:
+        raise KeyError(f"{name}: unknown keys {sorted(v)}")
+    return f"{name} {{ " + " ".join(parts) + " }"
+
+
+def model_options(v: dict[str, Any]) -> list[str]:
+    """The options of a brdf_table/brdf_model block, popped from ``v`` (what is left is unknown):
+    ``interpolate`` (0|1), ``scale`` (grey or RGB), ``use_color`` (bool), ``direction``, ``samples``."""
+    parts = []
     if "interpolate" in v:
         parts.append(f"interpolate {int(v.pop('interpolate'))}")
     if "scale" in v:
@@ -106,9 +115,7 @@ def model_keyword(name: str, value: Mapping[str, Any]) -> str:
         parts.append(f"direction {vec(v.pop('direction'))}")
     if "samples" in v:
         parts.append(f"samples {int(v.pop('samples'))}")
-    if v:
-        raise KeyError(f"{name}: unknown keys {sorted(v)}")
-    return f"{name} {{ " + " ".join(parts) + " }"
+    return parts
 
 
 #: Finish keyword → writer. Stock POV 3.7 keywords the harness models analytically; extend

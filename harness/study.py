@@ -53,7 +53,7 @@ from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from . import exr, runner
+from . import exr, povwriter, runner
 from .paths import REPO_ROOT, BinaryNotFound, brdftool, fork_binary
 from .tables import _run as _brdftool_cached
 
@@ -138,19 +138,13 @@ def _quote(s: str) -> str:
 
 
 def _options(m: dict, where: str, table: bool) -> str:
-    out = []
-    if "interpolate" in m:
-        if not table:
-            raise StudyError(f"{where}: interpolate applies to table materials only")
-        out.append(f"interpolate {int(m['interpolate'])}")
-    if "scale" in m:
-        out.append(f"scale {_rgb(m['scale'], where + ' scale')}")
-    if "use_color" in m:
-        out.append(f"use_color {'on' if m['use_color'] else 'off'}")
-    if "direction" in m:
-        out.append(f"direction {_rgb(m['direction'], where + ' direction')}")
-    if "samples" in m:
-        out.append(f"samples {int(m['samples'])}")
+    if "interpolate" in m and not table:
+        raise StudyError(f"{where}: interpolate applies to table materials only")
+    for key in ("scale", "direction"):
+        if key in m:
+            _rgb(m[key], f"{where} {key}")  # a clear study error before the writer sees it
+    opts = {k: m[k] for k in ("interpolate", "scale", "use_color", "direction", "samples") if k in m}
+    out = povwriter.model_options(opts)
     return (" " + " ".join(out)) if out else ""
 
 

@@ -99,17 +99,7 @@ TableGrid load_table_grid(const std::string& path, std::string* description) {
             throw_table_error(path, h.payload_offset + 4 * k, "a finite value", x > 0 ? "inf" : "-inf");
         v[k] = x >= 0 ? x : std::numeric_limits<float>::quiet_NaN();
     }
-    TableGrid grid(g);
-    const int C = g.channels;
-    if (g.folded) {
-        uint64_t k = 0;
-        for (uint32_t i = 0; i < g.n[0]; ++i)
-            for (uint32_t r = i; r < g.n[0]; ++r)
-                for (uint32_t q = 0; q < g.n[2]; ++q)
-                    for (int c = 0; c < C; ++c, ++k) grid.at(i, r, q, 0, c) = grid.at(r, i, q, 0, c) = v[k];
-    } else {
-        grid.values = std::move(v);
-    }
+    TableGrid grid = unfold_payload(g, std::move(v));
     if (description) *description = h.description;
     return grid;
 }

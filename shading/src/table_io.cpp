@@ -15,6 +15,21 @@
 
 namespace shading {
 
+TableGrid unfold_payload(const TableGeometry& g, std::vector<float> values) {
+    TableGrid grid(g);
+    if (!g.folded) {
+        grid.values = std::move(values);
+        return grid;
+    }
+    const int C = g.channels;
+    uint64_t k = 0;
+    for (uint32_t i = 0; i < g.n[0]; ++i)
+        for (uint32_t r = i; r < g.n[0]; ++r)
+            for (uint32_t q = 0; q < g.n[2]; ++q)
+                for (int c = 0; c < C; ++c, ++k) grid.at(i, r, q, 0, c) = grid.at(r, i, q, 0, c) = values[k];
+    return grid;
+}
+
 namespace {
 
 constexpr char kMagic[8] = {'P', 'V', 'B', 'R', 'D', 'F', '\0', '\0'};
@@ -269,17 +284,7 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
     if (!nodata) return std::make_unique<BrdfTable>(g, std::move(values), std::move(info), opt.interp);
 
     // No-data cells with the fill policy: fill on the full grid, fold again if folded.
-    TableGrid grid(g);
-    const int C = g.channels;
-    if (g.folded) {
-        uint64_t k = 0;
-        for (uint32_t i = 0; i < g.n[0]; ++i)
-            for (uint32_t r = i; r < g.n[0]; ++r)
-                for (uint32_t q = 0; q < g.n[2]; ++q)
-                    for (int c = 0; c < C; ++c, ++k) grid.at(i, r, q, 0, c) = grid.at(r, i, q, 0, c) = values[k];
-    } else {
-        grid.values = std::move(values);
-    }
+    TableGrid grid = unfold_payload(g, std::move(values));
     BuildOptions bo;
     bo.nodata = NoDataPolicy::Fill;
     bo.fold = g.folded;

@@ -175,6 +175,9 @@ struct BuildOptions {
 // Reject: TableError "NAME: offset N: ..." where N is the byte offset of the value in the
 // unfolded float32 payload. +-Inf is never "no data": always an error.
 uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::string& name);
+// The full grid of a payload laid out as `g` says (a folded payload, theta_i <= theta_r only,
+// is mirrored into both halves).
+TableGrid unfold_payload(const TableGeometry& g, std::vector<float> values);
 
 // Reciprocity of an unfolded grid over nodes: |f(i,r,...) - f(r,i,...)|.
 struct ReciprocityStats {
