@@ -160,11 +160,11 @@ demo: all brdf-data ## Render scenes/demo.pov and print where the image is
 	@grep -E 'Trace Time' out/demo.log | head -1 || true
 	@echo "demo image: $(TOP)/out/demo.png"
 
-test: all venv ## Build if needed, run the unit (ctest) and fast Python (pytest) suites
+test: all venv brdf-data ## Build if needed, run the unit (ctest) and fast Python (pytest) suites
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q -m "not slow"
 
-test-all: all venv ## Everything in `test` plus the slow renders
+test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q
 
