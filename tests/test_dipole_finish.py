@@ -154,3 +154,19 @@ light_source {{ <-20, 30, -40> rgb 1 }}
         px = r.image[(i // cols) * 16 + 8, (i % cols) * 16 + 8]
         assert px.max() > 0.0, names[i]
     assert "Dipole objects:                  47" in r.stderr
+
+
+def test_thin_geometry_is_reported(fork):
+    # A 0.2 mm sheet of a medium whose mean free path is ~1 mm: outside the dipole's thick-medium
+    # assumption, and the statistics say so.
+    text = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+camera { orthographic location <0, 0, 20> direction <0, 0, -1> right <12, 0, 0> up <0, 12, 0> }
+light_source { <0, 0, 1000> rgb 1 parallel point_at <0, 0, 0> }
+box { <-5, -5, -0.2>, <5, 5, 0> finish { ambient 0 dipole { sigma_s_prime 1 sigma_a 0.01 ior 1.3 mm_per_unit 1 } } }
+"""
+    r = runner.render(text, fork, width=24, height=24, float_exr=True)
+    assert np.isfinite(r.image).all() and (r.image >= 0).all()
+    assert "thinner than the mean free path" in r.stderr
+    thick = runner.render(text.replace("-0.2>", "-20>"), fork, width=24, height=24, float_exr=True)
+    assert "thinner than the mean free path" not in thick.stderr
