@@ -24,8 +24,6 @@ import sys
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
-import numpy as np
-
 from . import bench, runner
 from .compare import rel_rmse
 from .expect import expected_image, surface_samples
@@ -57,10 +55,7 @@ class ModelResult:
     label: str
     spec: str
     errors: list[float]
-    ratio: Optional[float] = None
-    spread: tuple[float, float] = (float("nan"), float("nan"))
-    model_s: Optional[float] = None
-    stock_s: Optional[float] = None
+    timing: Optional[bench.Result] = None  # stock/fork trace times (ratio, spread derive from it)
 
 
 def closed_form_errors(spec: str, size: int = 128) -> list[float]:
@@ -87,13 +82,10 @@ def run(models: Sequence[tuple[str, str]], repeat: int = 3, timing: bool = True,
     for label, spec in models:
         r = ModelResult(label, spec, closed_form_errors(spec))
         if timing:
-            m = bench.measure(cost_row(spec), repeat, log)
-            r.ratio, rs = m.ratio, m.ratios
-            r.spread = (min(rs), max(rs))
-            r.model_s, r.stock_s = float(np.median(m.candidate_s)), float(np.median(m.baseline_s))
+            r.timing = bench.measure(cost_row(spec), repeat, log)
         if log:
             log(f"{label}: errors {', '.join(f'{e:.1e}' for e in r.errors)}"
-                + (f", ratio {r.ratio:.3f}" if r.ratio is not None else ""))
+                + (f", ratio {r.timing.ratio:.3f}" if r.timing else ""))
         results.append(r)
     return results
 
@@ -102,8 +94,8 @@ def markdown(results: Sequence[ModelResult]) -> str:
     head = "| model | " + " | ".join(f"rel-RMSE {a:g}°" for a in ANGLES) + " | trace / stock phong | spread |"
     lines = [head, "|" + "---|" * (len(ANGLES) + 3)]
     for r in results:
-        ratio = f"{r.ratio:.3f}" if r.ratio is not None else "–"
-        spread = f"{r.spread[0]:.2f}..{r.spread[1]:.2f}" if r.ratio is not None else "–"
+        ratio = f"{r.timing.ratio:.3f}" if r.timing else "–"
+        spread = f"{min(r.timing.ratios):.2f}..{max(r.timing.ratios):.2f}" if r.timing else "–"
         lines.append(f"| {r.label} | " + " | ".join(f"{e:.1e}" for e in r.errors) + f" | {ratio} | {spread} |")
     return "\n".join(lines)
 

@@ -130,20 +130,12 @@ def test_directory_as_table_names_the_file(fork, table_files):
     ('brdf_model { "lambert" scale (1e308*10)-(1e308*10) }', "brdf_model: scale must be finite and >= 0."),
     ('brdf_table { "good.brdf" samples -1 }', "brdf_table: samples must be a whole number from 0 (off) to 4096, found -1."),
     ('brdf_model { "lambert" samples (1e308*10)-(1e308*10) }', "brdf_model: samples must be a whole number"),
+    ('brdf_model { "lambert" scale 1e308*10 }', "brdf_model: scale must be finite and >= 0."),
+    ('brdf_table { "good.brdf" interpolate 0.5 }', "interpolate must be 0 (nearest node) or 1 (trilinear), found 0.5"),
 ])
 def test_bad_option(fork, table_files, finish, message):
     msg = scene_error(fork, finish, table_files)
     assert message in msg, msg
-
-
-def test_infinite_scale(fork):
-    msg = scene_error(fork, 'brdf_model { "lambert" scale 1e308*10 }')
-    assert "brdf_model: scale must be finite and >= 0." in msg, msg
-
-
-def test_fractional_interpolate(fork, table_files):
-    msg = scene_error(fork, 'brdf_table { "good.brdf" interpolate 0.5 }', table_files)
-    assert "interpolate must be 0 (nearest node) or 1 (trilinear), found 0.5" in msg, msg
 
 
 # ---------------------------------------------------------------- brdf_model specs

@@ -267,6 +267,17 @@ struct Family {
 };
 
 // kd + s <= 1 per channel: scale both down when exceeded.
+// Each channel of v above 1 set to 1; true if any was.
+bool clamp_to_one(Rgb& v) {
+    bool clamped = false;
+    for (int c = 0; c < 3; ++c)
+        if (v[c] > 1.0) {
+            v[c] = 1.0;
+            clamped = true;
+        }
+    return clamped;
+}
+
 bool clamp_sum(Rgb& a, Rgb& b) {
     bool clamped = false;
     for (int c = 0; c < 3; ++c) {
@@ -386,11 +397,7 @@ Family oren_nayar_family() {
     fam.spec = [](const Vector& x, const Rgb&, const std::vector<Rgb>& coef, const std::function<std::string(double)>& fmt) {
         SpecOut o;
         Rgb rho = coef[0];
-        for (int c = 0; c < 3; ++c)
-            if (rho[c] > 1.0) {
-                rho[c] = 1.0;
-                o.clamped = true;
-            }
+        o.clamped = clamp_to_one(rho);
         o.spec = "oren_nayar rho=" + rgb_str(rho, fmt) + " sigma=" + fmt(x[0]);
         add_rgb_params(o.linear, "rho", rho);
         return o;
@@ -406,11 +413,7 @@ Family lambert_family() {
     fam.spec = [](const Vector&, const Rgb& kd_in, const std::vector<Rgb>&, const std::function<std::string(double)>& fmt) {
         SpecOut o;
         Rgb kd = kd_in;
-        for (int c = 0; c < 3; ++c)
-            if (kd[c] > 1.0) {
-                kd[c] = 1.0;
-                o.clamped = true;
-            }
+        o.clamped = clamp_to_one(kd);
         o.spec = "lambert rho=" + rgb_str(kd, fmt);
         add_rgb_params(o.linear, "rho", kd);
         return o;
@@ -449,11 +452,7 @@ Family lafortune_family(int k) {
                          const std::function<std::string(double)>& fmt) {
         SpecOut o;
         Rgb kd = kd_in;
-        for (int c = 0; c < 3; ++c)
-            if (kd[c] > 1.0) {
-                kd[c] = 1.0;
-                o.clamped = true;
-            }
+        o.clamped = clamp_to_one(kd);
         o.spec = "lafortune kd=" + rgb_str(kd, fmt);
         add_rgb_params(o.linear, "kd", kd);
         for (int j = 0; j < k; ++j) {

@@ -256,12 +256,12 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
         throw std::invalid_argument("dipole: error threshold must be in (0, 2], got " + std::to_string(settings_.max_angle));
     if (!(settings_.spacing >= 0) || !std::isfinite(settings_.spacing))
         throw std::invalid_argument("dipole: spacing must be >= 0 (0: automatic)");
-    for (int c = 0; c < 3; ++c) cutoff_ = std::max(cutoff_, dipole_.channel(c).radius_containing(1.0 - 1e-6));
-    // No absorption: Rd's tail is a power law and the cutoff grows without bound; a million
-    // transport lengths is the same 1e-6 of the reflectance for every channel there.
-    if (!std::isfinite(cutoff_) || !(cutoff_ > 0)) cutoff_ = 0;
+    // The radius holding all but 1e-6 of each channel's reflectance; without absorption Rd's
+    // tail is a power law and that radius grows without bound: a million transport lengths
+    // caps it there.
     for (int c = 0; c < 3; ++c)
-        if (!dipole_.channel(c).empty) cutoff_ = std::max(cutoff_, std::min(dipole_.channel(c).radius_containing(1.0 - 1e-6), 1e6 * dipole_.channel(c).zv));
+        if (!dipole_.channel(c).empty)
+            cutoff_ = std::max(cutoff_, std::min(dipole_.channel(c).radius_containing(1.0 - 1e-6), 1e6 * dipole_.channel(c).zv));
     profile_ = std::make_unique<RdProfile>(dipole_, cutoff_ > 0 ? cutoff_ : 1.0);
     transmit_handle_ = finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(medium.eta)));
 }
