@@ -147,10 +147,12 @@ brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt
 	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)
 
 # ---------------------------------------------------------------- python harness
-venv: $(VENV)/.installed ## Create the project venv with the harness requirements
-$(VENV)/.installed: harness/requirements.txt | $(STAMPS)/deps
+# The harness is a package (pyproject.toml: pinned dependencies, console scripts); the venv
+# holds it editable, with its test and study extras.
+venv: $(VENV)/.installed ## Create the project venv: the harness package (editable) and its pinned dependencies
+$(VENV)/.installed: pyproject.toml | $(STAMPS)/deps
 	test -x $(PY) || python3 -m venv $(VENV)
-	$(PY) -m pip install -q --disable-pip-version-check -r harness/requirements.txt
+	$(PY) -m pip install -q --disable-pip-version-check -e '.[test,study]'
 	@touch $@
 
 # ---------------------------------------------------------------- use
@@ -169,13 +171,13 @@ test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	$(PY) -m pytest -q
 
 bench: all venv ## Trace-time ratios (fork/stock, table/phong, every model, dipole/stock subsurface) and image errors
-	$(PY) -m harness.bench
-	$(PY) -m harness.table_error
-	$(PY) -m harness.model_bench
-	$(PY) -m harness.dipole_bench
+	$(PY) -m harness.reports.bench
+	$(PY) -m harness.reports.table_error
+	$(PY) -m harness.reports.model_bench
+	$(PY) -m harness.reports.dipole_bench
 
 dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg.png and an error table
-	$(PY) -m harness.dg_compare
+	$(PY) -m harness.reports.dg_compare
 
 # ---------------------------------------------------------------- robustness
 # Fuzzers (clang libFuzzer) for the .brdf and MERL readers, and sanitizer builds of the

@@ -1,18 +1,20 @@
-"""povray-brdf test harness: render reference scenes and compare them with closed forms.
+"""povray-brdf harness: render reference scenes, compare them with closed forms, and the
+user tools that turn measurements into materials.
 
-One job per module:
+Four packages, each importing only the ones below it (``tests/test_harness_layers.py``
+checks the contract with import-linter; ``.importlinter`` states it):
 
-* :mod:`harness.paths`     repository root, fork/stock binary discovery, include path;
-* :mod:`harness.scenes`    scene dataclasses, the single source of a scene's numbers;
-* :mod:`harness.povwriter` scene → ``.pov`` text (finishes from dicts);
-* :mod:`harness.runner`    run POV-Ray, read the EXR and POV's statistics;
-* :mod:`harness.exr`       EXR read/write, PNG previews;
-* :mod:`harness.expect`    analytic expected pixels (pure numpy);
-* :mod:`harness.compare`   error statistics and error-map PNGs;
-* :mod:`harness.report`    a single HTML page.
+* :mod:`harness.reports`    benchmarks, reports and pages: ``make bench/report/regress/study``;
+* :mod:`harness.tools`      what a user runs on their own data: sphere sampling, scattering
+                            fit, render cost, model recommendation, MERL synthesis, BRDF plots;
+* :mod:`harness.reference`  independent mathematics: closed-form pixels, the models in numpy,
+                            the dipole in numpy, Monte Carlo transport;
+* :mod:`harness.core`       infrastructure: paths, scenes, the ``.pov`` writer, the renderer
+                            runner, EXR, image comparison, ``.brdf`` I/O, ``brdftool``, plots,
+                            the page writer.
 
-Submodules are imported on use (``from harness import runner``) so that importing the
+Submodules are imported on use (``from harness.core import runner``) so that importing a
 package stays cheap.
 """
 
-__all__ = ["paths", "scenes", "povwriter", "runner", "exr", "expect", "compare", "report"]
+__all__ = ["core", "reference", "tools", "reports"]

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import pytest
 
-from harness.compare import HALF_REL_EPS
-from harness.paths import Binary, BinaryNotFound, fork_binary, stock_binary
+from harness.core.compare import HALF_REL_EPS
+from harness.core.paths import Binary, BinaryNotFound, fork_binary, stock_binary
 
 #: rel-RMSE tolerance against closed forms when POV writes half-float EXR (stock). An exact
 #: render rounded to half has rel-RMSE <= 2^-11 = 4.88e-4 (every value moves by at most that

@@ -1,6 +1,6 @@
 """Analytic ``brdf_model`` finishes rendered by the fork vs the models re-derived in numpy.
 
-The reference (:mod:`harness.models`) shares no code with the C++ library; it follows the
+The reference (:mod:`harness.reference.models`) shares no code with the C++ library; it follows the
 published formulas (complex Fresnel amplitudes, a 2-D projected-area quadrature for the Smith
 Lambda of Blinn and Gaussian, ...). Sphere renders cover every normal direction against lights
 from the view direction to 89.9 deg (grazing), in float EXR.
@@ -17,11 +17,12 @@ import subprocess
 import numpy as np
 import pytest
 
-from harness import models, runner
-from harness.compare import rel_rmse
-from harness.expect import expected_image, surface_samples
-from harness.paths import REPO_ROOT
-from harness.scenes import DistantLight, SphereScene
+from harness.reference import models
+from harness.core import runner
+from harness.core.compare import rel_rmse
+from harness.reference.expect import expected_image, surface_samples
+from harness.core.paths import REPO_ROOT
+from harness.core.scenes import DistantLight, SphereScene
 
 #: One render per model with four lights: headlight, 45 deg, 80 deg and 89.9 deg (grazing).
 LIGHTS = (DistantLight(0.0, 0.0, (0.4, 0.4, 0.4)), DistantLight(45.0, 30.0, (0.3, 0.3, 0.3)),
@@ -86,7 +87,7 @@ def test_closed_form_check_has_power(fork):
 def test_anisotropic_direction_turns_the_lobe(fork):
     # The tangent is the hint projected onto the surface: its length and sign do not matter
     # (Ward is symmetric under t -> -t), its direction does. (The closed-form test above checks
-    # the frame itself against harness.models.tangent_frame.)
+    # the frame itself against harness.reference.models.tangent_frame.)
     spec = "ward rho_s=0.4 ax=0.05 ay=0.3"
 
     def img(direction):

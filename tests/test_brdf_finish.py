@@ -11,10 +11,10 @@ import re
 import numpy as np
 import pytest
 
-from harness import runner, tables
-from harness.compare import rel_rmse
-from harness.expect import expected_image, surface_samples
-from harness.scenes import DistantLight, SphereScene
+from harness.core import runner, tables
+from harness.core.compare import rel_rmse
+from harness.reference.expect import expected_image, surface_samples
+from harness.core.scenes import DistantLight, SphereScene
 
 LIGHTS = (DistantLight(0.0), DistantLight(45.0, 30.0), DistantLight(80.0, 200.0))
 FLOAT_TOL = 1e-5

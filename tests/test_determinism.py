@@ -17,9 +17,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import runner, tables
-from harness.paths import repo_root
-from harness.scenes import DistantLight, SphereScene
+from harness.core import runner, tables
+from harness.core.paths import repo_root
+from harness.core.scenes import DistantLight, SphereScene
 
 LIGHTS = (DistantLight(0.0), DistantLight(50.0, 30.0), DistantLight(75.0, 200.0))
 TABLE_SPEC = "microfacet d=beckmann m=0.25 f=dielectric eta=1.5 kd=0.4 rho_s=0.6"

@@ -3,7 +3,7 @@
 The closed-form reference is a half-lit flat semi-infinite medium: a thick slab whose face is
 shadowed for x < 0 by an invisible blade, lit from straight above. Every pixel is then
 Ft(1) [Ft(1) E M(x)] + single scattering on the lit side, with M the dipole's radiant
-exitance of a half-plane source (:func:`harness.dipole_ref.half_plane_exitance`): light
+exitance of a half-plane source (:func:`harness.reference.dipole_ref.half_plane_exitance`): light
 bleeds into the shadow over a few diffusion lengths.
 """
 
@@ -13,9 +13,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import dipole_bench, runner
+from harness.reports import dipole_bench
+from harness.core import runner
 
-#: The medium of harness.dipole_bench (its closed-form reference too): a short diffusion length
+#: The medium of harness.reports.dipole_bench (its closed-form reference too): a short diffusion length
 #: (1/sigma_tr = 2.5 mm) so a 50 mm slab is "semi-infinite": sigma_s' = 1/mm, sigma_a = 0.05/mm, eta 1.3.
 SIGMA_S_PRIME, SIGMA_A, ETA = dipole_bench.SIGMA_S_PRIME, dipole_bench.SIGMA_A, dipole_bench.ETA
 
@@ -132,7 +133,7 @@ sphere {{ 0, 1
 def test_every_named_medium_renders(fork):
     # All 47 presets of dipole_media.inc parse and render finite, non-negative, lit spheres.
     import re
-    from harness.paths import REPO_ROOT
+    from harness.core.paths import REPO_ROOT
     names = re.findall(r"^#declare\s+(F_Dipole_\w+)\s*=", (REPO_ROOT / "scenes/include/dipole_media.inc").read_text(),
                        re.MULTILINE)
     assert len(names) == 47

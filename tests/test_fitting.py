@@ -10,9 +10,10 @@ import subprocess
 import numpy as np
 import pytest
 
-from harness import cost, recommend, scatter_fit, sphere_sampling, tables
-from harness.brdf_io import read_brdf, write_brdf
-from harness.paths import brdftool
+from harness.tools import cost, recommend, scatter_fit, sphere_sampling
+from harness.core import tables
+from harness.core.brdf_io import read_brdf, write_brdf
+from harness.core.paths import brdftool
 
 PLASTIC = "microfacet d=tr m=0.15 f=dielectric eta=1.5 kd=0.5,0.06,0.04 rho_s=0.5"
 
@@ -113,8 +114,8 @@ def test_write_brdf_with_nodata_then_fill(tmp_path):
 
 def test_extract_samples_inverts_pov_units():
     # A Lambert sphere rendered analytically: pixel = rho cos_i E  ->  f = rho / pi.
-    from harness.expect import expected_image, surface_samples
-    from harness.scenes import DistantLight, SphereScene
+    from harness.reference.expect import expected_image, surface_samples
+    from harness.core.scenes import DistantLight, SphereScene
     sc = SphereScene(lights=(DistantLight(40.0, 10.0, (2.0, 2.0, 2.0)),), finish={"diffuse": 0.6}, width=32, height=32)
     img = expected_image(sc)
     ss = surface_samples(sc)

@@ -1,4 +1,4 @@
-"""Gonioreflectometer round trip (``harness.gonio``): a 5 deg RGB table rendered on the
+"""Gonioreflectometer round trip (``harness.reports.gonio``): a 5 deg RGB table rendered on the
 virtual gonioreflectometer (FlatSampleScene) at a grid of (theta_i, theta_r, phi) gives back
 its stored values at the nodes and their trilinear interpolation between them.
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import gonio
+from harness.reports import gonio
 
 #: float32 pixels and float32 table values: a few float ulps (6e-8 each); measured <= 1e-7.
 ROUND_TRIP_TOL = 1.0e-6

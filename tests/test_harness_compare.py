@@ -1,4 +1,4 @@
-"""harness.compare, harness.exr, harness.report, harness.paths: no renders."""
+"""harness.core.compare, harness.core.exr, harness.reports.report, harness.core.paths: no renders."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from harness import compare, exr, paths, report
+from harness.core import compare, exr, page, paths
 
 
 def test_rel_rmse_definition():
@@ -76,7 +76,7 @@ def test_pngs_and_report(tmp_path):
     p3 = compare.error_map_png(tmp_path / "rel.png", a, b, mask=b[..., 0] > 0.2, relative=True)
     for p in (p1, p2, p3):
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    out = report.write_report(tmp_path / "rep" / "index.html", "Sphere <diffuse>",
+    out = page.write_report(tmp_path / "rep" / "index.html", "Sphere <diffuse>",
                               [{"case": "θ=45°", "rel_rmse": 2.1e-4, "ok": True, "map": p2},
                                {"case": "θ=89°", "rel_rmse": 0.5, "ok": False}],
                               images=[("relative error", p3)], notes="First.\n\nSecond.")
@@ -100,4 +100,4 @@ def test_binary_discovery(monkeypatch, tmp_path):
     monkeypatch.setenv("POVRAY_STOCK", str(tmp_path / "missing"))
     with pytest.raises(paths.BinaryNotFound, match="POVRAY_STOCK"):
         paths.stock_binary()
-    assert (paths.repo_root() / "harness" / "paths.py").is_file()
+    assert (paths.repo_root() / "harness" / "core" / "paths.py").is_file()

@@ -12,8 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from harness import compare, expect, runner
-from harness.scenes import FlatSampleScene, ShadowEdgeSlabScene
+from harness.core import compare, runner
+from harness.reference import expect
+from harness.core.scenes import FlatSampleScene, ShadowEdgeSlabScene
 
 GEOMETRIES = [(0, 0, 0), (30, 60, 90), (60, 20, 180), (75, 80, 45), (85, 10, 0), (10, 89, 270)]
 

@@ -1,4 +1,4 @@
-"""harness.povwriter: text structure, exact numbers, finish registry; output renders with stock."""
+"""harness.core.povwriter: text structure, exact numbers, finish registry; output renders with stock."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from harness import povwriter, runner
-from harness.scenes import (DistantLight, FlatSampleScene, ShadowEdgeSlabScene, SphereScene,
-                            written_finish)
+from harness.core import povwriter, runner
+from harness.core.scenes import (DistantLight, FlatSampleScene, ShadowEdgeSlabScene, SphereScene,
+                                 written_finish)
 
 
 def test_floats_round_trip_and_reject_nonfinite():

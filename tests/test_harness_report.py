@@ -1,4 +1,4 @@
-"""harness.report: the page writer and the finish report's tables and plots, on synthetic
+"""harness.reports.report: the finish report's tables and plots, on synthetic
 numbers (no renders; ``make report`` renders)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from harness import report
+from harness.reports import report
 
 
 def entries(tmp_path):
@@ -50,29 +50,15 @@ def test_plots_are_pngs(tmp_path):
     assert report.plot_speed_error([], tmp_path / "none.png") is None
 
 
-def test_write_page_sections_and_links(tmp_path):
-    img = tmp_path / "img" / "x.png"
-    img.parent.mkdir()
-    img.write_bytes(b"\x89PNG\r\n\x1a\n")
-    page = report.write_page(tmp_path / "rep" / "index.html", "T <1>", [
-        report.Section("First part", [{"a": 1.5, "ok": True, "map": img}], notes="n1\n\nn2", anchor="first"),
-        report.Section("Second", [{"b": "x"}], images=[("fig", img)]),
-    ], notes="top")
-    html = page.read_text()
-    assert "T &lt;1&gt;" in html and '<h2 id="first">First part</h2>' in html and 'href="#second"' in html
-    assert html.count("<table>") == 2 and 'src="../img/x.png"' in html and "pass" in html
-    assert html.count('<p class="note">') == 3
-
-
 def test_jsonable_round_trips(tmp_path):
-    d = report._jsonable({"a": np.float32(1.5), "b": np.arange(3), "c": float("nan"), "p": tmp_path, "t": (1, 2)})
+    d = report.jsonable({"a": np.float32(1.5), "b": np.arange(3), "c": float("nan"), "p": tmp_path, "t": (1, 2)})
     assert json.loads(json.dumps(d, allow_nan=False)) == {"a": 1.5, "b": [0, 1, 2], "c": None, "p": str(tmp_path),
                                                           "t": [1, 2]}
 
 
 def test_recording_sees_only_its_own_thread(monkeypatch):
     from concurrent.futures import ThreadPoolExecutor
-    from harness import runner
+    from harness.core import runner
 
     monkeypatch.setattr(runner, "render", lambda scene, *a, **kw: f"result {scene}")
     orig = runner.render

@@ -1,12 +1,12 @@
-"""harness.runner: statistics parsing, error reporting, parallel jobs, file staging."""
+"""harness.core.runner: statistics parsing, error reporting, parallel jobs, file staging."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from harness import runner
-from harness.scenes import DistantLight, SphereScene
+from harness.core import runner
+from harness.core.scenes import DistantLight, SphereScene
 
 STATS = """\
 ----------------------------------------------------------------------------

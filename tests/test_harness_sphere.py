@@ -1,4 +1,4 @@
-"""Sphere renders against the closed forms of harness.expect (stock terms, pixel-centre rays).
+"""Sphere renders against the closed forms of harness.reference.expect (stock terms, pixel-centre rays).
 
 Tolerances (conftest.py): stock writes half-float EXR, so an exact render has rel-RMSE at
 most 2^-11 = 4.88e-4 and every sample within 0.5 half-ulp of the closed form; measured
@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import compare, expect, runner
-from harness.scenes import DistantLight, SphereScene
+from harness.core import compare, runner
+from harness.reference import expect, terms
+from harness.core.scenes import DistantLight, SphereScene
 
 SIZE = 96  # even: no pixel centre lies exactly on the silhouette
 
@@ -74,7 +75,7 @@ def test_lambert_brdf_term_matches_diffuse(renderer):
     """pi f cos with f = rho/pi through the local-frame BRDF path equals POV's diffuse rho."""
     s = SphereScene(lights=(DistantLight(50, 70, (1.0, 0.5, 0.25)),), finish={"diffuse": 0.6},
                     pigment=(0.5, 0.75, 1.0), width=SIZE, height=SIZE)
-    term = expect.brdf_term(expect.lambert(0.6), times_pigment=True)
+    term = terms.brdf_term(terms.lambert(0.6), times_pigment=True)
     check(s, renderer, extra_terms={"diffuse": term})
 
 
@@ -101,8 +102,8 @@ def test_model_is_sensitive_to_mirroring_and_scale(stock):
 @pytest.mark.slow
 def test_sweep_all_terms_with_report(renderer, tmp_path):
     """Sweep of light directions at 256x256, all stock terms at once, with error maps and a report."""
-    from harness import report
-    from harness.runner import RenderJob, render_many
+    from harness.core import page
+    from harness.core.runner import RenderJob, render_many
 
     fin = {"diffuse": 0.5, "phong": 0.4, "phong_size": 30, "specular": 0.3, "roughness": 0.04}
     angles = [(0, 0), (20, 300), (40, 45), (60, 135), (75, 225), (85, 10), (100, 90), (135, 180)]
@@ -118,6 +119,6 @@ def test_sweep_all_terms_with_report(renderer, tmp_path):
                                     mask=expect.surface_samples(s).mask, title=f"θ={t}° φ={p}°")
         rows.append({"theta": t, "phi": p, "rel_rmse": st.rel_rmse, "max_abs": st.max_abs,
                      "trace_s": res.trace_seconds, "ok": st.rel_rmse < renderer.rel_tol, "error map": png})
-    out = report.write_report(tmp_path / "index.html", f"Sphere sweep ({renderer.name})", rows)
+    out = page.write_report(tmp_path / "index.html", f"Sphere sweep ({renderer.name})", rows)
     assert out.is_file()
     assert all(r["ok"] for r in rows), rows

@@ -14,8 +14,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from harness import exr
-from harness.paths import REPO_ROOT
+from harness.core import exr
+from harness.core.paths import REPO_ROOT
 
 READY = REPO_ROOT / "build" / "brdf_data"
 

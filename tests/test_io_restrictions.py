@@ -7,7 +7,7 @@ front end enforces none of it (four bugs in ``vfe/unix/unixoptions.cpp`` and
 ``brdf_data/``. Patch 0008 (``patches/0008-unix-io-restrictions.patch``) fixes them for the fork.
 
 With the fix, POV resolves symlinks before it checks a path, which is why
-:func:`harness.runner.render` stages files as hard links or copies, never symlinks.
+:func:`harness.core.runner.render` stages files as hard links or copies, never symlinks.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from harness import runner, tables
-from harness.paths import repo_root
+from harness.core import runner, tables
+from harness.core.paths import repo_root
 
 SCENE = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}

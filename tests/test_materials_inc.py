@@ -18,8 +18,8 @@ import re
 import numpy as np
 import pytest
 
-from harness import runner
-from harness.paths import repo_root
+from harness.core import runner
+from harness.core.paths import repo_root
 
 INCLUDE_DIR = repo_root() / "scenes" / "include"
 FILES = ("brdf_metals.inc", "brdf_fits.inc")

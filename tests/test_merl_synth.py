@@ -1,4 +1,4 @@
-"""harness.merl_synth: a synthetic MERL .binary that brdftool convert reads as the model it was made from."""
+"""harness.tools.merl_synth: a synthetic MERL .binary that brdftool convert reads as the model it was made from."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import subprocess
 
 import numpy as np
 
-from harness import merl_synth
-from harness.brdf_io import read_brdf
-from harness.paths import brdftool
+from harness.tools import merl_synth
+from harness.core.brdf_io import read_brdf
+from harness.core.paths import brdftool
 
 
 def test_converted_synthetic_merl_matches_the_library_model(tmp_path):

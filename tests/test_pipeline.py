@@ -14,8 +14,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from harness import runner
-from harness.paths import repo_root
+from harness.core import runner
+from harness.core.paths import repo_root
 
 DISTRIBUTION = repo_root() / "povray" / "distribution" / "scenes"
 

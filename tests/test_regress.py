@@ -1,4 +1,4 @@
-"""harness.regress: golden-image regression renders catch a changed scene, bless rewrites goldens.
+"""harness.reports.regress: golden-image regression renders catch a changed scene, bless rewrites goldens.
 
 The fast tests work on a copy of one committed scene (model_families: every brdf_model
 family, 288x144, well under a second) in a temporary directory; the whole committed suite
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from harness import regress
-from harness.paths import REPO_ROOT
+from harness.reports import regress
+from harness.core.paths import REPO_ROOT
 
 SCENE = "model_families"
 
@@ -62,7 +62,7 @@ def test_broken_scene_exits_nonzero(scene_copy, tmp_path):
     assert "m=0.2 f=dielectric" in text
     scene_copy.write_text(text.replace("m=0.2 f=dielectric", "m=0.22 f=dielectric"))
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "harness.regress", "--scenes-dir", str(scene_copy.parent),
+    proc = subprocess.run([sys.executable, "-m", "harness.reports.regress", "--scenes-dir", str(scene_copy.parent),
                            "--out", str(out), "-q"], cwd=REPO_ROOT, capture_output=True, text=True)
     assert proc.returncode == 1, proc.stdout + proc.stderr
     s = summary(out)

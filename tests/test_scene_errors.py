@@ -1,7 +1,7 @@
 """Bad values of the fork's finish keywords are POV-style scene errors at the right file and line.
 
 Every case renders a one-sphere scene whose finish sits on line 5 and checks the
-:class:`harness.runner.RenderError`: POV's message (what was wrong, in the loader's
+:class:`harness.core.runner.RenderError`: POV's message (what was wrong, in the loader's
 ``NAME: offset N: expected X, found Y`` form for table files), ``file == "scene.pov"`` and
 ``line == 5``. Broken tables are made from a valid 15-degree table (header fields patched,
 the checksum refreshed where the point is to reach a later check).
@@ -20,7 +20,7 @@ import struct
 
 import pytest
 
-from harness import runner, tables
+from harness.core import runner, tables
 
 SCENE = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}

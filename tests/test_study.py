@@ -1,4 +1,4 @@
-"""harness.study: study files, local and Dask-distributed renders, the contact sheet and page.
+"""harness.reports.study: study files, local and Dask-distributed renders, the contact sheet and page.
 
 The Dask test starts a ``distributed.LocalCluster`` in this process (``processes=False``) on
 loopback TCP and sends a small study to its scheduler's address, as ``--scheduler`` would.
@@ -13,8 +13,9 @@ import sys
 import numpy as np
 import pytest
 
-from harness import runner, study
-from harness.paths import REPO_ROOT
+from harness.core import runner
+from harness.reports import study
+from harness.core.paths import REPO_ROOT
 
 SMALL = """
 title = "small test study"

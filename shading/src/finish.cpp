@@ -235,7 +235,7 @@ private:
 // the mirror direction with e = 30, 300, 3000) and the model's own sampler (Brdf::sample: the
 // microfacet D or Ward lobe, long tails included), combined with the balance heuristic (equal
 // counts: each sample weighs f cos / the mean of the five pdfs). Measured against a 1200 x 2400
-// midpoint rule (harness.models): Lambert exact, glossy parts within 0.3 % below 80 deg.
+// midpoint rule (harness.reference.models): Lambert exact, glossy parts within 0.3 % below 80 deg.
 Rgb quadrature_albedo(const Brdf& b, double theta_o) {
     constexpr int n = 48;  // strata per axis and component
     const Vec3 wo(std::sin(theta_o), 0.0, std::cos(theta_o));

@@ -861,7 +861,7 @@ double CostTable::cost_of(const std::string& family) const {
 
 CostTable builtin_costs() {
     CostTable t;
-    // Rough trace-time ratios vs stock phong on a shading-bound sphere (harness/cost.py
+    // Rough trace-time ratios vs stock phong on a shading-bound sphere (harness/tools/cost.py
     // measures the real ones): closed forms are cheap, Smith with tabulated Lambda and the
     // Gaussian's acos cost more, conductor Fresnel is complex arithmetic.
     t.entries = {{"lambert", 1.00},

@@ -1,6 +1,6 @@
 // Dipole and single-scattering tests: closed forms against quadrature, preset numbers, hard cases,
 // units, reciprocity and energy. The independent check against transport theory is the Monte Carlo
-// reference in harness/mc_subsurface.py (tests/test_mc_subsurface.py).
+// reference in harness/reference/mc_subsurface.py (tests/test_mc_subsurface.py).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -500,7 +500,7 @@ int cmd_fit(Args& a) {
 }
 
 // Default cost table: $BRDF_COSTS, else costs.txt in the parent of brdftool's directory
-// (build/costs.txt for build/shading/brdftool, where harness/cost.py writes it).
+// (build/costs.txt for build/shading/brdftool, where harness/tools/cost.py writes it).
 std::string default_costs_path() {
     if (const char* e = std::getenv("BRDF_COSTS")) return e;
     char buf[4096];
@@ -661,7 +661,7 @@ const std::vector<Command>& commands() {
          "Fit the models (as `fit`), rank them by error and render cost, and name the cheapest\n"
          "model whose error is within --tol, or 'keep the table'.\n"
          "  --tol E       largest acceptable rel-RMSE (cos-weighted, as `fit` reports; default 0.05)\n"
-         "  --costs FILE  trace-time ratios vs stock phong, lines 'FAMILY RATIO' (harness/cost.py\n"
+         "  --costs FILE  trace-time ratios vs stock phong, lines 'FAMILY RATIO' (harness/tools/cost.py\n"
          "                writes them). Default: $BRDF_COSTS, else costs.txt in the parent directory of\n"
          "                brdftool's (build/costs.txt); without a file, a built-in rough order.\n"
          "  --tsv         one line per family: family, error, cost, within_tol, spec; then 'table'\n"

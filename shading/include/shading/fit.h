@@ -124,7 +124,7 @@ std::string pov_finish_snippet(const std::string& spec);
 
 // Relative render cost of a model family against POV's stock `phong` (trace-time ratio).
 // Keys are family prefixes: "lambert", "oren_nayar", "ward", "lafortune", "microfacet d=X",
-// "table" (brdf_table lookups). harness/cost.py measures them; without a file the built-in
+// "table" (brdf_table lookups). harness/tools/cost.py measures them; without a file the built-in
 // rough order below is used.
 struct CostTable {
     std::vector<std::pair<std::string, double>> entries;

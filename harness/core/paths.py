@@ -1,0 +1,130 @@
+"""Where things are: the repository root, the two POV-Ray binaries, the include path.
+
+Binary discovery is environment-first so CI and people can point the harness elsewhere:
+
+* ``POVRAY_BRDF``  — the fork (default ``<repo>/build/bin/povray-brdf``);
+* ``POVRAY_STOCK`` — Debian's stock 3.7.0.10 (default ``/usr/bin/povray``);
+* ``POVRAY_INCLUDE`` — extra include directories (``os.pathsep``-separated), searched
+  before the standard ``/usr/share/povray-3.7/include``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, Union
+
+Flavour = Literal["fork", "stock"]
+
+#: Repository root: the directory that holds ``harness/`` (this file is harness/core/paths.py).
+REPO_ROOT: Path = Path(__file__).resolve().parents[2]
+
+#: Where the build puts the fork, relative to the repository root.
+FORK_DEFAULT: Path = REPO_ROOT / "build" / "bin" / "povray-brdf"
+
+#: Debian's stock binary (package ``povray`` 1:3.7.0.10-2+b2).
+STOCK_DEFAULT: Path = Path("/usr/bin/povray")
+
+#: Debian installs POV-Ray's standard include files here.
+STANDARD_INCLUDE: Path = Path("/usr/share/povray-3.7/include")
+
+
+class BinaryNotFound(FileNotFoundError):
+    """A POV-Ray binary is missing or not executable; the message says how to fix it."""
+
+
+@dataclass(frozen=True)
+class Binary:
+    """A resolved renderer: its path and whether it is the fork or the stock build.
+
+    The flavour decides which options the runner may use (``+FE32`` is fork-only).
+    """
+
+    path: Path
+    flavour: Flavour
+
+
+def repo_root() -> Path:
+    """Return the repository root."""
+    return REPO_ROOT
+
+
+def _check_executable(path: Path, what: str, env: str, hint: str) -> Path:
+    if not path.is_file():
+        raise BinaryNotFound(f"{what} not found at {path} (set {env} to override). {hint}")
+    if not os.access(path, os.X_OK):
+        raise BinaryNotFound(f"{what} at {path} is not executable (set {env} to override).")
+    return path
+
+
+def fork_binary() -> Binary:
+    """Locate the fork ``povray-brdf``; raise :class:`BinaryNotFound` if it is not built."""
+    path = Path(os.environ.get("POVRAY_BRDF") or FORK_DEFAULT)
+    _check_executable(path, "fork binary povray-brdf", "POVRAY_BRDF",
+                      "Build it first (see the README / `make help`).")
+    return Binary(path, "fork")
+
+
+def stock_binary() -> Binary:
+    """Locate Debian's stock POV-Ray 3.7; raise :class:`BinaryNotFound` if it is missing."""
+    env = os.environ.get("POVRAY_STOCK")
+    if env:
+        path = Path(env)
+    elif STOCK_DEFAULT.is_file():
+        path = STOCK_DEFAULT
+    else:
+        found = shutil.which("povray")
+        path = Path(found) if found else STOCK_DEFAULT
+    _check_executable(path, "stock POV-Ray", "POVRAY_STOCK",
+                      "Install it with `apt-get install povray` (version 1:3.7.0.10).")
+    return Binary(path, "stock")
+
+
+def resolve_binary(which: Union[str, os.PathLike, Binary]) -> Binary:
+    """Turn ``'fork'``, ``'stock'``, a :class:`Binary` or a path into a :class:`Binary`.
+
+    A bare path counts as the fork when its file name starts with ``povray-brdf``,
+    otherwise as stock; pass a :class:`Binary` to say it explicitly.
+    """
+    if isinstance(which, Binary):
+        return which
+    if which == "fork":
+        return fork_binary()
+    if which == "stock":
+        return stock_binary()
+    path = Path(which)
+    flavour: Flavour = "fork" if path.name.startswith("povray-brdf") else "stock"
+    _check_executable(path, f"POV-Ray binary ({flavour})", "the binary argument", "")
+    return Binary(path, flavour)
+
+
+def brdftool() -> Path:
+    """The shading library's ``brdftool`` (built by ``make``; ``BRDFTOOL`` overrides)."""
+    path = Path(os.environ.get("BRDFTOOL") or REPO_ROOT / "build" / "shading" / "brdftool")
+    return _check_executable(path, "brdftool", "BRDFTOOL", "Build it first with `make shading`.")
+
+
+def include_dirs() -> list[Path]:
+    """Include directories to pass with ``+L``: ``POVRAY_INCLUDE`` entries, then the standard one.
+
+    Only directories that exist are returned.
+    """
+    dirs = [Path(p) for p in os.environ.get("POVRAY_INCLUDE", "").split(os.pathsep) if p]
+    dirs.append(STANDARD_INCLUDE)
+    return [d for d in dirs if d.is_dir()]
+
+
+def git_commit() -> str:
+    """The checkout's commit (short hash), '(working tree modified)' when tracked files
+    differ from it; 'unknown' outside a git checkout."""
+    try:
+        rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO_ROOT, capture_output=True,
+                             text=True, check=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO_ROOT,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return rev + (" (working tree modified)" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"

@@ -1,0 +1,383 @@
+"""Run POV-Ray on a scene and bring back a float image and POV's own statistics.
+
+Each render runs in a fresh temporary directory used as the working directory, with relative
+file names (``scene.pov`` → ``out.exr``): stock POV's ``/etc/povray/3.7/povray.conf`` permits
+writes to ``.`` and ``/tmp``. ``HOME`` points to an empty directory inside the job so no user
+``~/.povray/3.7/povray.{conf,ini}`` interferes, and ``POVINI``/``POVINC`` are removed from the
+environment. The fork brings its own conf, compiled in.
+
+Options always passed:
+
+* ``-A``  no anti-aliasing: exactly one ray through each pixel centre (what :mod:`harness.reference.expect`
+  models);
+* ``-D``  no display; ``-V`` not verbose (drops the per-line progress, keeps the statistics,
+  which go to the statistics stream: never pass ``-GA``); ``-UA`` no alpha channel;
+* ``+FE32`` (fork, ``float_exr=True``) or ``+FE`` (stock: half float only; stock *accepts*
+  ``+FE32`` and still writes half, so the runner does not pretend);
+* ``+WT<threads>`` (default 1: timings per thread, and the machines are small);
+* ``+L<dir>`` for each :func:`harness.core.paths.include_dirs` entry.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Optional, Sequence, Union
+
+import numpy as np
+
+from harness.core import exr
+from harness.core.paths import Binary, include_dirs, resolve_binary
+from harness.core.povwriter import scene_to_pov
+
+SCENE_NAME = "scene.pov"
+OUTPUT_NAME = "out.exr"
+
+
+class RenderError(RuntimeError):
+    """POV-Ray failed. ``message`` is POV's own error text; ``file``/``line`` where it points."""
+
+    def __init__(self, message: str, *, file: Optional[str] = None, line: Optional[int] = None,
+                 returncode: Optional[int] = None, command: Sequence[str] = (), stderr: str = "",
+                 pov_text: str = "") -> None:
+        where = f"{file} line {line}: " if file is not None and line is not None else ""
+        super().__init__(f"POV-Ray failed (exit {returncode}): {where}{message}")
+        self.message = message
+        self.file = file
+        self.line = line
+        self.returncode = returncode
+        self.command = list(command)
+        self.stderr = stderr
+        self.pov_text = pov_text
+
+
+@dataclass
+class RenderResult:
+    """One finished render.
+
+    ``image`` is float32 (H, W, 3), linear, row 0 at the top; ``exr_dtype`` says how the file
+    stored it (``float16`` for stock). Times are POV's own, in seconds (None if not printed);
+    ``wall_seconds`` includes start-up (~0.6 s). ``peak_memory_bytes`` is POV's "Peak memory
+    used" where it prints one, else the process's peak resident set size (``stats["max_rss_bytes"]``).
+    """
+
+    image: np.ndarray
+    exr_dtype: np.dtype
+    trace_seconds: Optional[float]
+    parse_seconds: Optional[float]
+    peak_memory_bytes: Optional[int]
+    stats: dict[str, float]
+    warnings: list[str]
+    command: list[str]
+    stderr: str
+    wall_seconds: float
+    binary: Binary
+    pov_text: str
+
+
+# ---------------------------------------------------------------- parsing POV's output
+
+_TIME_RE = re.compile(
+    r"^\s*(?P<what>Parse|Bounding|Photon|Radiosity|Trace) Time:\s*"
+    r"(?P<h>\d+)\s+hours?\s+(?P<m>\d+)\s+minutes?\s+(?P<s>\d+)\s+seconds?"
+    r"(?:\s*\((?P<secs>\d+(?:\.\d+)?)\s+seconds?\))?"
+    r"(?:[ \t]*\r?\n\s*using\s+(?P<threads>\d+)\s+thread\(s\)\s+with\s+"
+    r"(?P<cpu>\d+(?:\.\d+)?)\s+CPU-seconds\s+total)?",
+    re.MULTILINE)
+_COUNT_RES = {
+    "pixels": re.compile(r"^Pixels:\s+(\d+)", re.MULTILINE),
+    "samples": re.compile(r"^Pixels:.*?Samples:\s+(\d+)", re.MULTILINE),
+    "rays": re.compile(r"^Rays:\s+(\d+)", re.MULTILINE),
+    "shadow_ray_tests": re.compile(r"^Shadow Ray Tests:\s+(\d+)", re.MULTILINE),
+    "shadow_rays_succeeded": re.compile(r"^Shadow Ray Tests:.*?Succeeded:\s+(\d+)", re.MULTILINE),
+    "peak_memory_bytes": re.compile(r"^\s*Peak memory used:\s+(\d+)\s+bytes", re.MULTILINE),
+    "reflected_rays": re.compile(r"^Reflected Rays:\s+(\d+)", re.MULTILINE),
+}
+_MSG_RE = re.compile(r"^File '(?P<file>[^']*)' line (?P<line>\d+):\s*(?P<msg>.*)$", re.MULTILINE)
+_END_MARKERS = ("Fatal error", "Render failed", "----", "====")
+
+
+def parse_stats(stderr: str) -> dict[str, float]:
+    """POV's statistics as numbers.
+
+    Keys (present when printed): ``<what>_time`` in seconds for parse, bounding, photon,
+    radiosity, trace (the ``(12.345 seconds)`` figure, else h/m/s); ``<what>_cpu_time`` and
+    ``<what>_threads`` from the ``using N thread(s) with X CPU-seconds total`` line; ``pixels``,
+    ``samples``, ``rays``, ``shadow_ray_tests``, ``shadow_rays_succeeded``,
+    ``peak_memory_bytes``, ``reflected_rays``. "No photons"/"No trace" lines give no key.
+    """
+    out: dict[str, float] = {}
+    for m in _TIME_RE.finditer(stderr):
+        key = m["what"].lower()
+        if m["secs"] is not None:
+            secs = float(m["secs"])
+        else:
+            secs = 3600.0 * int(m["h"]) + 60.0 * int(m["m"]) + int(m["s"])
+        out[f"{key}_time"] = secs
+        if m["threads"] is not None:
+            out[f"{key}_threads"] = float(m["threads"])
+            out[f"{key}_cpu_time"] = float(m["cpu"])
+    for key, rx in _COUNT_RES.items():
+        c = rx.search(stderr)
+        if c:
+            out[key] = float(c.group(1))
+    return out
+
+
+def _message_at(stderr: str, m: re.Match) -> str:
+    """The message starting at match ``m``, with POV's 80-column continuation lines joined."""
+    parts = [m["msg"].strip()]
+    for ln in stderr[m.end():].splitlines()[1:]:
+        if not ln.startswith(" ") or ln.strip().startswith(_END_MARKERS) or not ln.strip():
+            break
+        parts.append(ln.strip())
+    return " ".join(parts)
+
+
+def parse_messages(stderr: str) -> list[tuple[str, int, str]]:
+    """Every ``File 'f' line N: …`` message POV printed, as ``(file, line, text)``."""
+    return [(m["file"], int(m["line"]), _message_at(stderr, m)) for m in _MSG_RE.finditer(stderr)]
+
+
+def parse_error(stderr: str) -> tuple[str, Optional[str], Optional[int]]:
+    """POV's error as ``(message, file, line)``; file/line are None when POV gave none.
+
+    Takes the last located message that is an error (not a warning); failing that, the
+    lines that end the output (e.g. ``Parse Error: Cannot open input file.``).
+    """
+    located = [msg for msg in parse_messages(stderr) if "Error" in msg[2] or "error" in msg[2]]
+    if located:
+        f, n, text = located[-1]
+        return text, f, n
+    lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
+    lines = [ln for ln in lines if ln != "Render failed"]
+    errs = [ln for ln in lines if "rror" in ln or "annot" in ln or "ailed" in ln]
+    return (" ".join(errs[-3:]) if errs else " ".join(lines[-5:])), None, None
+
+
+# ---------------------------------------------------------------- running
+
+def _clean_env(home: Path) -> dict[str, str]:
+    env = dict(os.environ)
+    env["HOME"] = str(home)
+    for k in ("POVINI", "POVINC"):
+        env.pop(k, None)
+    return env
+
+
+def _stage(src: Path, dst: Path) -> None:
+    """Put ``src`` into the job directory as ``dst``: a hard link, or a copy across file systems
+    (a directory is copied).
+
+    Not a symlink: with I/O restrictions on, POV-Ray resolves symlinks before checking a path,
+    so a symlink in the job directory to a file outside the permitted paths is refused.
+    """
+    if src.is_dir():
+        shutil.copytree(src, dst)
+        return
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copyfile(src, dst)
+
+
+def _run_measured(cmd: Sequence[str], cwd: Path, env: Mapping[str, str],
+                  timeout: Optional[float]) -> tuple[Optional[int], str, str, Optional[int]]:
+    """Run ``cmd``; return ``(exit status or None on timeout, stdout, stderr, peak RSS bytes)``.
+
+    ``subprocess.run`` reaps the child without its resource usage, so the child is reaped
+    here with ``os.wait4`` (its ``ru_maxrss``, kB on Linux); the pipes are drained by threads
+    and a timer kills the child at ``timeout``.
+    """
+    proc = subprocess.Popen(cmd, cwd=cwd, env=dict(env), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    chunks: dict[str, bytes] = {}
+
+    def drain(name: str, pipe: Any) -> None:
+        chunks[name] = pipe.read()
+        pipe.close()
+
+    readers = [threading.Thread(target=drain, args=(n, p), daemon=True)
+               for n, p in (("out", proc.stdout), ("err", proc.stderr))]
+    for t in readers:
+        t.start()
+    timed_out = threading.Event()
+
+    def kill() -> None:
+        timed_out.set()
+        try:
+            proc.kill()
+        except OSError:
+            pass
+
+    timer = threading.Timer(timeout, kill) if timeout is not None else None
+    if timer is not None:
+        timer.start()
+    try:
+        _, status, usage = os.wait4(proc.pid, 0)
+    finally:
+        if timer is not None:
+            timer.cancel()
+    proc.returncode = os.waitstatus_to_exitcode(status)  # Popen must not wait for it again
+    for t in readers:
+        t.join()
+    out = chunks.get("out", b"").decode(errors="replace")
+    err = chunks.get("err", b"").decode(errors="replace")
+    rss = int(usage.ru_maxrss) * 1024 if usage.ru_maxrss > 0 else None
+    return (None if timed_out.is_set() else proc.returncode), out, err, rss
+
+
+def build_command(binary: Binary, width: int, height: int, float_exr: bool = False,
+                  threads: int = 1, extra_args: Sequence[str] = ()) -> list[str]:
+    """The command line the runner uses (relative names: run it in the job directory)."""
+    fmt = "+FE32" if (float_exr and binary.flavour == "fork") else "+FE"
+    cmd = [str(binary.path), f"+I{SCENE_NAME}", f"+O{OUTPUT_NAME}", fmt,
+           "-A", "-D", "-V", "-UA", f"+W{int(width)}", f"+H{int(height)}", f"+WT{int(threads)}"]
+    cmd += [f"+L{d}" for d in include_dirs()]
+    cmd += list(extra_args)
+    return cmd
+
+
+def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
+           width: Optional[int] = None, height: Optional[int] = None, float_exr: bool = False,
+           extra_args: Sequence[str] = (), threads: int = 1,
+           files: Optional[Mapping[str, Union[str, os.PathLike]]] = None,
+           workdir: Optional[Union[str, os.PathLike]] = None,
+           timeout: Optional[float] = 600.0) -> RenderResult:
+    """Render ``scene`` (a :mod:`harness.core.scenes` dataclass, or ``.pov`` text) with ``binary``.
+
+    ``width``/``height`` default to the scene's (required for text). ``files`` maps names in
+    the job directory to files staged there (hard links or copies: tables, include files).
+    ``workdir`` renders in that directory and keeps it; otherwise a temporary one is removed
+    afterwards.
+    Raises :class:`RenderError` (with POV's message, file and line) when POV fails or writes
+    no image, and :class:`harness.core.paths.BinaryNotFound` when the binary is missing.
+    """
+    b = resolve_binary(binary)
+    if isinstance(scene, str):
+        text = scene
+        if width is None or height is None:
+            raise ValueError("width and height are required when rendering scene text")
+    else:
+        text = scene_to_pov(scene)
+        width = scene.width if width is None else width
+        height = scene.height if height is None else height
+    cmd = build_command(b, width, height, float_exr, threads, extra_args)
+
+    tmp = None
+    if workdir is None:
+        tmp = tempfile.mkdtemp(prefix="povjob-")
+        job = Path(tmp)
+    else:
+        job = Path(workdir)
+        job.mkdir(parents=True, exist_ok=True)
+    try:
+        home = job / "home"
+        home.mkdir(exist_ok=True)
+        (job / SCENE_NAME).write_text(text)
+        for name, src in (files or {}).items():
+            dst = job / name
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            if dst.is_dir() and not dst.is_symlink():
+                shutil.rmtree(dst)
+            elif dst.is_symlink() or dst.exists():
+                dst.unlink()
+            _stage(Path(src).resolve(), dst)
+        out = job / OUTPUT_NAME
+        if out.exists():
+            out.unlink()
+        t0 = time.perf_counter()
+        returncode, stdout, stderr, max_rss = _run_measured(cmd, job, _clean_env(home), timeout)
+        wall = time.perf_counter() - t0
+        stderr = stderr + stdout
+        if returncode is None:
+            raise RenderError(f"timed out after {timeout} s", command=cmd, stderr=stderr, pov_text=text)
+        if returncode != 0 or not out.is_file():
+            msg, f, n = parse_error(stderr)
+            if returncode == 0:
+                msg = f"no output image written. {msg}"
+            raise RenderError(msg, file=f, line=n, returncode=returncode, command=cmd,
+                              stderr=stderr, pov_text=text)
+        img = exr.read_exr_full(out)
+        stats = parse_stats(stderr)
+        if max_rss is not None:
+            stats["max_rss_bytes"] = float(max_rss)
+        # POV 3.7's unix build prints no "Peak memory used" (a memory-debug build does): then
+        # the process's peak resident set size stands in for it.
+        mem = stats.get("peak_memory_bytes", stats.get("max_rss_bytes"))
+        warnings = [f"{f} line {n}: {t}" for f, n, t in parse_messages(stderr) if "Warning" in t]
+        return RenderResult(image=img.pixels, exr_dtype=img.stored_dtype,
+                            trace_seconds=stats.get("trace_time"), parse_seconds=stats.get("parse_time"),
+                            peak_memory_bytes=int(mem) if mem is not None else None, stats=stats,
+                            warnings=warnings, command=cmd, stderr=stderr, wall_seconds=wall,
+                            binary=b, pov_text=text)
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+@dataclass
+class RenderJob:
+    """One job for :func:`render_many`: a scene (or text) and keyword arguments for :func:`render`."""
+
+    scene: Any
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+class Progress:
+    """``[render] 3/12 done, 1 failed, 4.2 s`` on stderr, rewritten in place."""
+
+    def __init__(self, total: int, enabled: bool) -> None:
+        self.total, self.done, self.failed, self.enabled = total, 0, 0, enabled
+        self.t0 = time.perf_counter()
+        self.lock = threading.Lock()
+
+    def tick(self, ok: bool) -> None:
+        with self.lock:
+            self.done += 1
+            self.failed += 0 if ok else 1
+            if self.enabled:
+                fail = f", {self.failed} failed" if self.failed else ""
+                end = "\n" if self.done == self.total else ""
+                sys.stderr.write(f"\r[render] {self.done}/{self.total} done{fail}, "
+                                 f"{time.perf_counter() - self.t0:.1f} s{end}")
+                sys.stderr.flush()
+
+
+def render_many(jobs: Iterable[Union[RenderJob, Any]], *, max_workers: Optional[int] = None,
+                progress: bool = True, return_exceptions: bool = False,
+                **common: Any) -> list[Union[RenderResult, Exception]]:
+    """Render several jobs concurrently (threads: each job is a POV process); results in order.
+
+    ``jobs`` are :class:`RenderJob` or bare scenes; ``common`` keyword arguments apply to all
+    (a job's own options win). ``max_workers`` defaults to the CPU count. With
+    ``return_exceptions`` a failed job's exception takes its place; otherwise the first
+    failure (in job order) is raised after all jobs finish.
+    """
+    jl = [j if isinstance(j, RenderJob) else RenderJob(j) for j in jobs]
+    prog = Progress(len(jl), progress and len(jl) > 0)
+
+    def run(job: RenderJob) -> Union[RenderResult, Exception]:
+        try:
+            r: Union[RenderResult, Exception] = render(job.scene, **{**common, **job.options})
+        except Exception as e:  # noqa: BLE001 - handed back or re-raised below
+            r = e
+        prog.tick(not isinstance(r, Exception))
+        return r
+
+    with ThreadPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
+        results = list(pool.map(run, jl))
+    if not return_exceptions:
+        for r in results:
+            if isinstance(r, Exception):
+                raise r
+    return results

@@ -1,0 +1,52 @@
+"""BRDF tables for scenes: made with ``brdftool`` once, cached under ``build/brdf_cache``.
+
+    path = tables.tabulated("microfacet d=beckmann m=0.3", step=1.0)
+
+The cache key is the tool's whole command line (hashed), so a table is rebuilt only when
+what it would contain changes; delete ``build/brdf_cache`` to force it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+from pathlib import Path
+from typing import Sequence
+
+from harness.core.paths import REPO_ROOT, brdftool
+
+CACHE_DIR = REPO_ROOT / "build" / "brdf_cache"
+
+
+def cached(args: Sequence[str], stem: str) -> Path:
+    """The table ``brdftool ARGS -o FILE`` writes, made once: ``build/brdf_cache/STEM-KEY.brdf``
+    with KEY a hash of the whole command line."""
+    key = hashlib.sha256("\0".join(args).encode()).hexdigest()[:16]
+    out = CACHE_DIR / f"{stem}-{key}.brdf"
+    if out.is_file():
+        return out
+    CACHE_DIR.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(f".tmp{os.getpid()}")
+    proc = subprocess.run([str(brdftool()), *args, "-o", str(tmp)], capture_output=True, text=True)
+    if proc.returncode != 0:
+        tmp.unlink(missing_ok=True)
+        raise RuntimeError(f"brdftool {' '.join(args)} failed: {proc.stderr.strip()}")
+    tmp.replace(out)
+    return out
+
+
+def tabulated(spec: str, step: float = 1.0, fold: bool = False, channels: int = 3) -> Path:
+    """A table of the analytic model ``spec`` at ``step`` degrees."""
+    args = ["tabulate", spec, "--step", repr(float(step)), "--channels", str(channels)]
+    if fold:
+        args.append("--fold")
+    return cached(args, "tab")
+
+
+def measured_like(spec: str, step: float = 1.0, noise: float = 0.02, missing: float = 0.001,
+                  seed: int = 1) -> Path:
+    """A simulated gonioreflectometer measurement of ``spec`` (noise, missing cells filled)."""
+    args = ["measured-like", spec, "--step", repr(float(step)), "--noise", repr(noise),
+            "--missing", repr(missing), "--seed", str(seed)]
+    return cached(args, "meas")

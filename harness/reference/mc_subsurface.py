@@ -1,0 +1,286 @@
+"""Monte Carlo photon migration in a semi-infinite homogeneous medium: the independent reference
+for the dipole model (shading/include/shading/dipole.h, harness/reference/dipole_ref.py).
+
+Model (the dipole's own assumptions, and nothing of its mathematics):
+  * medium z > 0 (z is depth), flat boundary at z = 0, relative index eta = n_medium / n_outside;
+  * a pencil beam enters at the origin along the normal. The incident Fresnel reflection is
+    NOT part of the tallies: results are per unit power ENTERING the medium, which is how the
+    dipole's Rd and Jensen's S_d = (1/pi) Ft Rd Ft are normalised (Ft(wi) is applied outside
+    Rd). The specular part ((eta-1)/(eta+1))^2 is reported separately in MCResult.specular;
+  * exponential free paths with sigma_t = sigma_s + sigma_a, Henyey-Greenstein scattering;
+  * absorption by weight (implicit capture: w *= albedo at each interaction) and Russian
+    roulette below `roulette_weight` (survival probability `roulette_survival`), which keeps the
+    estimator unbiased and bounds path lengths for albedo up to 0.9999;
+  * at the boundary, exact unpolarised Fresnel from inside (relative index 1/eta, total internal
+    reflection beyond the critical angle). The photon is split deterministically: the
+    transmitted fraction of its weight is tallied as exitance at the crossing point, the
+    reflected fraction continues along the mirrored direction (no extra random numbers);
+  * tallies: total Rd, split into single scattering (exactly one interaction) and multiple
+    scattering (two or more), and radial Rd(r) per unit area in annular bins, per unit entering
+    power. Standard errors come from per-photon sums (each photon is one independent sample).
+
+Vectorised over photons with numpy, seeded with numpy's PCG64 (`numpy.random.default_rng`), so a
+given (parameters, seed, n_photons) gives bit-identical results on the same numpy version.
+
+Command line:  python -m harness.reference.mc_subsurface --table   (dipole vs MC over albedo and eta)
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+try:  # package use (python -m harness.reference.mc_subsurface, tests)
+    from harness.reference import dipole_ref
+except ImportError:  # pragma: no cover - run as a plain script from harness/
+    import dipole_ref  # type: ignore
+
+__all__ = ["MCResult", "simulate", "default_r_edges", "table", "main"]
+
+
+@dataclass
+class MCResult:
+    n_photons: int
+    sigma_s: float
+    sigma_a: float
+    g: float
+    eta: float
+    total: float            # Rd: exiting power / entering power
+    total_err: float        # one standard error
+    single: float           # part of `total` after exactly one scattering event
+    single_err: float
+    multiple: float         # part after two or more events
+    multiple_err: float
+    specular: float         # normal-incidence Fresnel reflection of the beam (not in `total`)
+    r_edges: np.ndarray     # radial bin edges (length units of 1/sigma)
+    rd_r: np.ndarray        # Rd per unit area in each annulus, all orders
+    rd_r_err: np.ndarray
+    rd_r_multiple: np.ndarray
+    interactions: int       # photon-interaction events simulated (cost measure)
+    seconds: float
+    extra: dict = field(default_factory=dict)
+
+
+def default_r_edges(sigma_t_prime: float) -> np.ndarray:
+    """Log-spaced bins from 0.01 to 100 reduced mean free paths (plus the disc r < 0.01)."""
+    mfp = 1.0 / sigma_t_prime
+    return np.concatenate([[0.0], np.geomspace(0.01, 100.0, 61)]) * mfp
+
+
+def _fresnel_out(cos_i: np.ndarray, inv_eta: float) -> np.ndarray:
+    """Reflectance for light inside hitting the boundary (relative index 1/eta)."""
+    return dipole_ref.fresnel_dielectric(cos_i, inv_eta)
+
+
+def _scatter(ux, uy, uz, g, rng):
+    """New directions after Henyey-Greenstein scattering (deflection about the old direction)."""
+    n = ux.size
+    xi = rng.random(n)
+    if g == 0.0:
+        ct = 2.0 * xi - 1.0
+    else:
+        t = (1.0 - g * g) / (1.0 - g + 2.0 * g * xi)
+        ct = np.clip((1.0 + g * g - t * t) / (2.0 * g), -1.0, 1.0)
+    st = np.sqrt(np.maximum(0.0, 1.0 - ct * ct))
+    phi = 2.0 * math.pi * rng.random(n)
+    cp, sp = np.cos(phi), np.sin(phi)
+    # Rotate (st cp, st sp, ct) from the frame of u to world; near the poles use the fixed frame.
+    pole = np.abs(uz) > 0.99999
+    den = np.sqrt(np.maximum(1e-300, 1.0 - uz * uz))
+    nx = st * (ux * uz * cp - uy * sp) / den + ux * ct
+    ny = st * (uy * uz * cp + ux * sp) / den + uy * ct
+    nz = -st * cp * den + uz * ct
+    nx = np.where(pole, st * cp, nx)
+    ny = np.where(pole, st * sp, ny)
+    nz = np.where(pole, np.sign(uz) * ct, nz)
+    inv = 1.0 / np.sqrt(nx * nx + ny * ny + nz * nz)  # keep unit length over long paths
+    return nx * inv, ny * inv, nz * inv
+
+
+def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
+             n_photons: int = 100_000, seed: int = 1, r_edges: np.ndarray | None = None,
+             roulette_weight: float = 1e-3, roulette_survival: float = 0.1,
+             max_iterations: int = 10_000_000) -> MCResult:
+    """Simulate `n_photons` photons entering at the origin along the normal; see module doc."""
+    if not (sigma_s >= 0 and sigma_a >= 0 and sigma_s + sigma_a > 0):
+        raise ValueError(f"need sigma_s, sigma_a >= 0 and sigma_t > 0, got {sigma_s}, {sigma_a}")
+    if not (-1.0 < g < 1.0):
+        raise ValueError(f"g = {g}: need -1 < g < 1")
+    if not eta > 0:
+        raise ValueError(f"eta = {eta}: need > 0")
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    sigma_t = sigma_s + sigma_a
+    albedo = sigma_s / sigma_t
+    if r_edges is None:
+        r_edges = default_r_edges(sigma_s * (1.0 - g) + sigma_a)
+    r_edges = np.asarray(r_edges, dtype=float)
+    nb = r_edges.size - 1
+    inv_eta = 1.0 / eta
+
+    n = int(n_photons)
+    ids = np.arange(n)
+    x = np.zeros(n)
+    y = np.zeros(n)
+    z = np.zeros(n)
+    ux = np.zeros(n)
+    uy = np.zeros(n)
+    uz = np.ones(n)
+    w = np.ones(n)
+    order = np.zeros(n, dtype=np.int64)  # interactions so far
+
+    per_single = np.zeros(n)   # per-photon exiting weight after one interaction
+    per_multi = np.zeros(n)    # ... after two or more
+    bins_all = np.zeros(nb)
+    bins_all_sq = np.zeros(nb)
+    bins_multi = np.zeros(nb)
+    interactions = 0
+
+    it = 0
+    while ids.size and it < max_iterations:
+        it += 1
+        s = -np.log1p(-rng.random(ids.size)) / sigma_t  # free path; 1 - U in (0, 1]
+        up = uz < 0.0
+        with np.errstate(divide="ignore"):
+            d_b = np.where(up, z / np.where(up, -uz, 1.0), np.inf)  # distance to the boundary
+        hit = s >= d_b
+
+        # Photons reaching the boundary: move there, split by Fresnel.
+        if hit.any():
+            hx = x[hit] + ux[hit] * d_b[hit]
+            hy = y[hit] + uy[hit] * d_b[hit]
+            fr = _fresnel_out(-uz[hit], inv_eta)
+            w_out = w[hit] * (1.0 - fr)
+            o = order[hit]
+            out = w_out > 0.0
+            if out.any():
+                r = np.hypot(hx[out], hy[out])
+                b = np.searchsorted(r_edges, r, side="right") - 1
+                wo_ = w_out[out]
+                ok = (b >= 0) & (b < nb)
+                bins_all += np.bincount(b[ok], weights=wo_[ok], minlength=nb)
+                bins_all_sq += np.bincount(b[ok], weights=wo_[ok] ** 2, minlength=nb)
+                mo = ok & (o[out] >= 2)
+                bins_multi += np.bincount(b[mo], weights=wo_[mo], minlength=nb)
+                hid = ids[hit][out]
+                oo = o[out]
+                per_single[hid[oo == 1]] += wo_[oo == 1]   # ids unique within one step
+                per_multi[hid[oo >= 2]] += wo_[oo >= 2]
+            x[hit] = hx
+            y[hit] = hy
+            z[hit] = 0.0
+            uz[hit] = -uz[hit]
+            w[hit] = w[hit] * fr
+
+        # The others interact at the end of their free path.
+        m = ~hit
+        if m.any():
+            sm = s[m]
+            x[m] += ux[m] * sm
+            y[m] += uy[m] * sm
+            z[m] += uz[m] * sm
+            w[m] *= albedo
+            order[m] += 1
+            interactions += int(m.sum())
+            ux[m], uy[m], uz[m] = _scatter(ux[m], uy[m], uz[m], g, rng)
+
+        # Russian roulette on light photons; drop dead ones.
+        low = (w < roulette_weight) & (w > 0.0)
+        if low.any():
+            survive = rng.random(int(low.sum())) < roulette_survival
+            wl = w[low]
+            w[low] = np.where(survive, wl / roulette_survival, 0.0)
+        alive = w > 0.0
+        if not alive.all():
+            ids, x, y, z, ux, uy, uz, w, order = (
+                a[alive] for a in (ids, x, y, z, ux, uy, uz, w, order))
+
+    per_total = per_single + per_multi
+    sq = math.sqrt(n)
+    area = math.pi * (r_edges[1:] ** 2 - r_edges[:-1] ** 2)
+    return MCResult(
+        n_photons=n, sigma_s=sigma_s, sigma_a=sigma_a, g=g, eta=eta,
+        total=float(per_total.mean()), total_err=float(per_total.std(ddof=1) / sq),
+        single=float(per_single.mean()), single_err=float(per_single.std(ddof=1) / sq),
+        multiple=float(per_multi.mean()), multiple_err=float(per_multi.std(ddof=1) / sq),
+        specular=float(((eta - 1.0) / (eta + 1.0)) ** 2),
+        r_edges=r_edges, rd_r=bins_all / (n * area),
+        # Exits treated as independent: a slight underestimate where one photon exits twice.
+        rd_r_err=np.sqrt(np.maximum(0.0, bins_all_sq / n - (bins_all / n) ** 2 / np.maximum(1, n)) / n) / area,
+        rd_r_multiple=bins_multi / (n * area),
+        interactions=interactions, seconds=time.perf_counter() - t0,
+        extra={"iterations": it, "unfinished": int(ids.size)},
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Dipole vs MC table
+
+TABLE_R = (0.5, 1.0, 2.0, 4.0, 8.0)  # radii in reduced mean free paths for the Rd(r) columns
+
+
+def _bin_mean(res: MCResult, r: float):
+    """MC annulus mean around r (the bin containing r) and its edges."""
+    b = int(np.searchsorted(res.r_edges, r, side="right") - 1)
+    return res.rd_r[b], res.rd_r_err[b], res.r_edges[b], res.r_edges[b + 1]
+
+
+def table(albedos=(0.5, 0.8, 0.9, 0.95, 0.99, 0.999), etas=(1.0, 1.3, 1.5), g: float = 0.0,
+          n_photons: int = 100_000, seed: int = 1, out=sys.stdout) -> list[dict]:
+    """Print dipole vs MC totals and radial profiles; sigma_t' = 1 (lengths in reduced mfp)."""
+    rows = []
+    hdr = ("alpha'  eta  | Rd dipole  Rd MC (+-1se)      MC single MC multi | dip/MC-1 "
+           "| exact(eta=1) | Rd(r) dipole/MC at r = " + ", ".join(f"{r:g}" for r in TABLE_R)
+           + " mfp' | s")
+    print(hdr, file=out)
+    print("-" * len(hdr), file=out)
+    t_all = time.perf_counter()
+    for eta in etas:
+        for a in albedos:
+            ssp, sa = a, 1.0 - a           # sigma_t' = 1
+            ss = ssp / (1.0 - g)
+            res = simulate(ss, sa, g=g, eta=eta, n_photons=n_photons, seed=seed)
+            dip = dipole_ref.Dipole(ssp, sa, eta)
+            rd = dip.rd_total()
+            exact = dipole_ref.plane_albedo_isotropic(a) if (eta == 1.0 and g == 0.0) else float("nan")
+            ratios = []
+            for r in TABLE_R:
+                mc, err, r1, r2 = _bin_mean(res, r)
+                ratios.append(float(dip.rd_annulus_mean(r1, r2)) / mc if mc > 0 else float("nan"))
+            row = dict(alpha_prime=a, eta=eta, g=g, rd_dipole=rd, rd_mc=res.total, rd_mc_err=res.total_err,
+                       single=res.single, multiple=res.multiple, exact=exact, ratios=ratios,
+                       seconds=res.seconds, interactions=res.interactions)
+            rows.append(row)
+            ex = f"{exact:12.4f}" if exact == exact else " " * 12
+            print(f"{a:6.3f} {eta:5.2f} | {rd:9.4f}  {res.total:.4f} (+-{res.total_err:.4f})  "
+                  f"{res.single:9.4f} {res.multiple:8.4f} | {rd / res.total - 1.0:+8.3f} | {ex} | "
+                  + "  ".join(f"{q:5.2f}" for q in ratios) + f" | {res.seconds:5.1f}", file=out)
+    print(f"total {time.perf_counter() - t_all:.1f} s, {n_photons} photons per row, seed {seed}, "
+          f"g = {g}, numpy {np.__version__}", file=out)
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.reference.mc_subsurface", description=__doc__.splitlines()[0])
+    ap.add_argument("--table", action="store_true", help="print dipole vs Monte Carlo table")
+    ap.add_argument("--photons", type=int, default=100_000)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--g", type=float, default=0.0, help="HG g of the MC medium (dipole uses sigma_s')")
+    ap.add_argument("--albedos", type=lambda s: [float(v) for v in s.split(",")],
+                    default=[0.5, 0.8, 0.9, 0.95, 0.99, 0.999])
+    ap.add_argument("--etas", type=lambda s: [float(v) for v in s.split(",")], default=[1.0, 1.3, 1.5])
+    args = ap.parse_args(argv)
+    if not args.table:
+        ap.print_help()
+        return 2
+    table(args.albedos, args.etas, g=args.g, n_photons=args.photons, seed=args.seed)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,173 @@
+"""Benchmarks: trace-time ratios measured in one run, never asserted by tests.
+
+Each row renders a scene with a baseline (usually stock POV-Ray) and a candidate (the
+fork, often with one of our finishes) and reports the ratio of POV's own *trace* times
+(start-up and parsing excluded). Renders alternate baseline/candidate and each ratio is the
+median over ``--repeat`` pairs, so machine noise hits both sides alike.
+
+    python -m harness.reports.bench                 # every row
+    python -m harness.reports.bench -k unmodified   # rows whose name contains the text
+    python -m harness.reports.bench --list
+
+Later issues add rows with :func:`row`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Mapping, Optional, Sequence, Union
+
+from harness.core import runner, tables
+
+#: The reference scene of the pipeline issue: diffuse, phong, specular, reflection and
+#: a few lights, no new keywords. Its trace time is about 0.6 s at 1280x960 on one thread.
+REFERENCE_SCENE = """#version 3.7;
+global_settings { assumed_gamma 1.0 max_trace_level 5 }
+camera { location <0, 2.2, -7> look_at <0, 0.7, 0> angle 45 }
+light_source { <-4, 6, -5> rgb 1 }
+light_source { <5, 3, -2> rgb <0.3, 0.35, 0.4> }
+plane { y, 0 pigment { checker rgb 0.8 rgb 0.2 scale 0.5 } finish { diffuse 0.7 reflection 0.15 } }
+#declare I = 0;
+#while (I < 9)
+  sphere { <mod(I, 3) * 1.6 - 1.6, 0.6, div(I, 3) * 1.6 - 0.8> 0.6
+    pigment { rgb <0.2 + 0.08 * I, 0.5, 0.9 - 0.08 * I> }
+    finish { diffuse 0.6 phong 0.6 phong_size 30 specular 0.2 roughness 0.02 } }
+  #declare I = I + 1;
+#end
+"""
+
+
+@dataclass
+class Side:
+    """One side of a comparison: a binary and the scene text it renders."""
+
+    binary: str
+    scene: str
+    #: name in the job directory -> path, or a callable making the file (tables), run once
+    files: Mapping[str, Union[str, Path, Callable[[], Path]]] = field(default_factory=dict)
+
+    def resolved_files(self) -> dict[str, Path]:
+        return {k: Path(v() if callable(v) else v) for k, v in self.files.items()}
+
+
+@dataclass
+class Row:
+    name: str
+    baseline: Side
+    candidate: Side
+    width: int = 1280
+    height: int = 960
+    note: str = ""
+
+
+ROWS: list[Row] = []
+
+
+def row(name: str, baseline: Side, candidate: Side, **kw) -> Row:
+    """Register a benchmark row (module import time)."""
+    r = Row(name, baseline, candidate, **kw)
+    ROWS.append(r)
+    return r
+
+
+row("unmodified scene: fork / stock",
+    Side("stock", REFERENCE_SCENE), Side("fork", REFERENCE_SCENE),
+    note="same scene, no new keywords; expected ~1.0")
+
+#: The reference scene with every sphere's finish replaced by a 1 deg table of a
+#: comparable material (a Lambert base under a rough dielectric lobe).
+TABLE_SPEC = "microfacet d=tr m=0.15 f=dielectric eta=1.5 kd=0.6 rho_s=0.4"
+#: The baseline finish of REFERENCE_SCENE, which every candidate row replaces.
+STOCK_FINISH = "finish { diffuse 0.6 phong 0.6 phong_size 30 specular 0.2 roughness 0.02 }"
+
+def _table_side(lookup: str = "") -> Side:
+    """The fork rendering the reference scene with the 1 deg table finish."""
+    return Side("fork", REFERENCE_SCENE.replace(STOCK_FINISH, f'finish {{ brdf_table {{ "t.brdf"{lookup} }} }}'),
+                files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)})
+
+
+row("brdf_table 1 deg trilinear / stock phong+specular", Side("stock", REFERENCE_SCENE), _table_side(),
+    note="goal <= 1.15")
+row("brdf_table 1 deg trilinear / fork phong+specular", Side("fork", REFERENCE_SCENE), _table_side(),
+    note="same binary: the cost of the table path alone")
+row("brdf_table 1 deg nearest / stock phong+specular", Side("stock", REFERENCE_SCENE), _table_side(" interpolate 0"))
+row("brdf_model (same microfacet, direct) / stock phong+specular",
+    Side("stock", REFERENCE_SCENE),
+    Side("fork", REFERENCE_SCENE.replace(STOCK_FINISH, f'finish {{ brdf_model {{ "{TABLE_SPEC}" }} }}')),
+    note="analytic evaluation")
+assert all(STOCK_FINISH not in r.candidate.scene for r in ROWS[1:])  # every candidate replaced it
+
+
+@dataclass
+class Result:
+    row: Row
+    baseline_s: list[float]
+    candidate_s: list[float]
+
+    @property
+    def ratios(self) -> list[float]:
+        return [c / b for b, c in zip(self.baseline_s, self.candidate_s) if b > 0]
+
+    @property
+    def ratio(self) -> float:
+        return statistics.median(self.ratios)
+
+
+def _trace_time(side: Side, r: Row) -> float:
+    res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=1,
+                        files=side.resolved_files())
+    if res.trace_seconds is None:
+        raise RuntimeError(f"{r.name}: POV printed no trace time")
+    return res.trace_seconds
+
+
+def measure(r: Row, repeat: int = 5, log: Optional[Callable[[str], None]] = None) -> Result:
+    """Alternate baseline and candidate renders ``repeat`` times (after one warm-up pair)."""
+    _trace_time(r.baseline, r), _trace_time(r.candidate, r)  # warm file caches
+    base, cand = [], []
+    for i in range(repeat):
+        base.append(_trace_time(r.baseline, r))
+        cand.append(_trace_time(r.candidate, r))
+        if log:
+            log(f"  {r.name} [{i + 1}/{repeat}] {base[-1]:.3f} s vs {cand[-1]:.3f} s")
+    return Result(r, base, cand)
+
+
+def format_table(results: Sequence[Result]) -> str:
+    w = max([len(x.row.name) for x in results] + [4])
+    lines = [f"{'row':<{w}}  {'baseline s':>10}  {'candidate s':>11}  {'ratio':>6}  {'spread':>13}  note",
+             "-" * (w + 60)]
+    for x in results:
+        rs = x.ratios
+        lines.append(f"{x.row.name:<{w}}  {statistics.median(x.baseline_s):10.3f}  "
+                     f"{statistics.median(x.candidate_s):11.3f}  {x.ratio:6.3f}  "
+                     f"{min(rs):6.3f}..{max(rs):6.3f}  {x.row.note}")
+    return "\n".join(lines)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.reports.bench", description=__doc__.split("\n\n")[0])
+    ap.add_argument("-k", dest="pattern", default="", help="only rows whose name contains this text")
+    ap.add_argument("--repeat", type=int, default=5, help="baseline/candidate pairs per row (default 5)")
+    ap.add_argument("--list", action="store_true", help="list the rows and exit")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no per-render progress")
+    args = ap.parse_args(argv)
+    rows = [r for r in ROWS if args.pattern in r.name]
+    if args.list:
+        print("\n".join(r.name for r in rows))
+        return 0
+    if not rows:
+        print(f"no benchmark row matches {args.pattern!r}", file=sys.stderr)
+        return 2
+    log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    results = [measure(r, max(1, args.repeat), log) for r in rows]
+    print(format_table(results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

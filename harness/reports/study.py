@@ -1,0 +1,467 @@
+"""Side-by-side material studies: ``make study`` (``python -m harness.reports.study STUDY.toml``).
+
+A study file (TOML) names materials, shapes and lights; every material is rendered on every
+shape under every light with the fork, and the renders go into a labelled contact sheet
+(``sheet.png`` and ``index.html`` in ``out/study/<study name>/``) with each image's trace time
+and peak memory (POV's own statistics), plus BRDF polar plots (``brdftool plot``) of the
+table materials. ``studies/example.toml`` documents the format; in short::
+
+    title = "..."
+    size = [160, 160]                      # pixels per render
+    shapes = ["sphere", "torus", "blob"]   # presets: sphere torus blob text box
+    lights = ["key", "rim"]                # presets: key rim area top
+
+    [[material]]                           # one of: table, model, dipole, finish, pov
+    name = "gold (1 deg table)"
+    table = "gold.brdf"                    # build/brdf_data, or a path relative to the study
+    # brdftool = ["tabulate", "lambert rho=0.5", "--step", "5"]   # makes `table` (cached)
+    # model = "microfacet d=tr m=0.2 ..."  # brdf_model spec
+    # dipole = "Marble"  or  dipole = { sigma_s_prime = [..], sigma_a = [..], ior = 1.3 }
+    # mm_per_unit = 10                     # dipole
+    # finish = "F_BRDF_Gold_Satin"  include = "brdf_metals.inc"   # a named finish
+    # pov = "finish { ... }"               # raw POV text for the object (texture, finish...)
+    # interpolate, scale, use_color, direction, samples: the brdf_table/brdf_model options
+    # pigment = [r, g, b]                  # default 0.8 grey (used with use_color / raw POV)
+
+    [shape.NAME] pov = "..."               # extra shapes: an object with MATERIAL where the
+    [light.NAME] pov = "..."               # material goes; extra light rigs: any POV text
+
+Renders run as local parallel jobs (:func:`harness.core.runner.render_many`, ``--jobs`` at a
+time) or, with ``--scheduler ADDRESS``, on an existing Dask distributed scheduler
+(``tcp://host:8786``): each render is one task (:func:`harness.reports.dask_task.render_task`) that
+runs :func:`harness.core.runner.render` on a worker. The harness itself is uploaded to the
+scheduler and workers (they need numpy and OpenEXR, not a checkout); the fork binary and the
+study's tables must be at the same paths there as here (a shared file system or the same
+checkout; ``POVRAY_BRDF`` on a worker overrides the binary path).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Sequence, Union
+
+from harness.core import exr, page, plotting, povwriter, runner, tables
+from harness.core.paths import REPO_ROOT, BinaryNotFound, fork_binary
+from harness.tools import brdfplot
+
+READY_TABLES = REPO_ROOT / "build" / "brdf_data"
+OUT_ROOT = REPO_ROOT / "out" / "study"
+
+#: Shape presets: POV text with MATERIAL where the material goes (about 2 units across,
+#: centred 1 unit above the floor at y = 0).
+SHAPES: dict[str, str] = {
+    "sphere": "sphere { <0, 1, 0>, 1 MATERIAL }",
+    "torus": "torus { 0.72, 0.3 rotate x * 60 rotate y * 20 translate y * 1 MATERIAL }",
+    "blob": ("blob { threshold 0.55 sphere { <-0.45, 0.9, 0>, 0.85, 1 } sphere { <0.5, 1.15, 0.1>, 0.75, 1 }"
+             " sphere { <0.05, 0.6, -0.35>, 0.7, 1 } cylinder { <-0.6, 1.5, 0>, <0.6, 1.6, 0>, 0.35, 1 } MATERIAL }"),
+    "text": ('text { ttf "timrom.ttf" "Rg" 0.5, 0 scale 1.5 translate <-0.9, 0.35, -0.25> MATERIAL }'),
+    "box": "superellipsoid { <0.25, 0.25> scale 0.75 rotate <-20, 35, 0> translate y * 1 MATERIAL }",
+}
+
+#: Light rigs: POV light sources (the camera looks at <0, 1, 0> from <0, 2.3, -5.2>).
+LIGHTS: dict[str, str] = {
+    "key": ("light_source { <-4, 6, -5> rgb 1 }\n"
+            "light_source { <5, 2, -3> rgb <0.22, 0.24, 0.28> }"),
+    "rim": ("light_source { <2.5, 4, 5> rgb 1.1 }\n"
+            "light_source { <-4, 3, -5> rgb 0.25 }"),
+    "area": "light_source { <-4, 6, -5> rgb 1 area_light x * 2, z * 2, 4, 4 adaptive 1 circular orient }",
+    "top": "light_source { <0, 8, 0> rgb 1 }\nlight_source { <0, 2, -6> rgb 0.15 }",
+}
+
+SCENE_TEMPLATE = """#version 3.7;
+// study: {material} | {shape} | {light}
+global_settings {{ assumed_gamma 1.0 max_trace_level 5 }}
+{includes}
+camera {{ location <0, 2.3, -5.2> look_at <0, 1, 0> angle 32 right x * image_width / image_height }}
+sky_sphere {{ pigment {{ gradient y color_map {{ [0 rgb <0.55, 0.6, 0.7>] [1 rgb <0.12, 0.16, 0.3>] }} }} }}
+plane {{ y, 0 pigment {{ checker rgb 0.55 rgb 0.35 scale 0.5 }} finish {{ diffuse 0.8 }} }}
+{lights}
+{obj}
+"""
+
+class StudyError(ValueError):
+    """A study file that cannot be used: the message says where and why."""
+
+@dataclass
+class Material:
+    """One ``[[material]]``: its label, the POV text that goes into the object, its table."""
+
+    name: str
+    kind: str                      # table | model | dipole | finish | pov
+    pov: str                       # material text placed in the object
+    includes: list[str] = field(default_factory=list)
+    table: Optional[Path] = None   # the .brdf file of a table material (for the polar plot)
+    files: dict[str, Path] = field(default_factory=dict)
+    describe: str = ""
+
+@dataclass
+class Study:
+    title: str
+    path: Path
+    width: int
+    height: int
+    materials: list[Material]
+    shapes: dict[str, str]
+    lights: dict[str, str]
+
+# ---------------------------------------------------------------- reading a study
+
+def _rgb(v: Any, where: str) -> str:
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return repr(float(v))
+    if isinstance(v, list) and len(v) == 3 and all(isinstance(x, (int, float)) for x in v):
+        return "<" + ", ".join(repr(float(x)) for x in v) + ">"
+    raise StudyError(f"{where}: expected a number or [r, g, b], found {v!r}")
+
+def _quote(s: str) -> str:
+    if '"' in s or "\\" in s:
+        raise StudyError(f"quotes and backslashes are not allowed in {s!r}")
+    return f'"{s}"'
+
+def _options(m: dict, where: str, table: bool) -> str:
+    if "interpolate" in m and not table:
+        raise StudyError(f"{where}: interpolate applies to table materials only")
+    for key in ("scale", "direction"):
+        if key in m:
+            _rgb(m[key], f"{where} {key}")  # a clear study error before the writer sees it
+    opts = {k: m[k] for k in ("interpolate", "scale", "use_color", "direction", "samples") if k in m}
+    out = povwriter.model_options(opts)
+    return (" " + " ".join(out)) if out else ""
+
+def _material(m: dict, i: int, base: Path) -> Material:
+    where = f"material {i + 1}"
+    if not isinstance(m.get("name"), str) or not m["name"]:
+        raise StudyError(f"{where}: every material needs a name")
+    name = m["name"]
+    where = f"material {i + 1} ({name})"
+    kinds = [k for k in ("table", "model", "dipole", "finish", "pov") if k in m]
+    if len(kinds) != 1:
+        raise StudyError(f"{where}: give exactly one of table, model, dipole, finish, pov (found {kinds or 'none'})")
+    kind = kinds[0]
+    pigment = f"pigment {{ rgb {_rgb(m.get('pigment', 0.8), where + ' pigment')} }} "
+    includes = [m["include"]] if isinstance(m.get("include"), str) else list(m.get("include", []))
+    extra = m.get("extra", "")  # POV finish items added inside the finish (e.g. "specular 0.3 roughness 0.01")
+    mat = Material(name, kind, "", includes)
+    if kind == "table":
+        tname = str(m["table"])
+        if "brdftool" in m:
+            args = [str(a) for a in m["brdftool"]]
+            path = tables.cached(args, "study")
+            stage = Path(tname).name
+            mat.files[stage] = path
+            mat.describe = f"brdftool {' '.join(args)}"
+        elif (base / tname).is_file():
+            path = (base / tname).resolve()
+            stage = path.name
+            mat.files[stage] = path
+            mat.describe = f"table {tname}"
+        elif (READY_TABLES / tname).is_file():
+            path, stage = READY_TABLES / tname, tname  # found on the fork's library path
+            mat.describe = f"ready table build/brdf_data/{tname}"
+        else:
+            raise StudyError(f"{where}: table {tname!r} not found next to the study nor in {READY_TABLES} "
+                             "(run `make brdf-data`, or give brdftool = [...] to make it)")
+        mat.table = path
+        mat.pov = f"{pigment}finish {{ brdf_table {{ {_quote(stage)}{_options(m, where, True)} }} {extra} }}"
+    elif kind == "model":
+        mat.pov = f"{pigment}finish {{ brdf_model {{ {_quote(str(m['model']))}{_options(m, where, False)} }} {extra} }}"
+        mat.describe = f"brdf_model {m['model']}"
+    elif kind == "dipole":
+        d = m["dipole"]
+        mm = f" mm_per_unit {float(m.get('mm_per_unit', 10.0))!r}"
+        if isinstance(d, str):
+            body = f"{_quote(d)}{mm}"
+            mat.describe = f"dipole preset {d}"
+        elif isinstance(d, dict):
+            parts = []
+            for key, val in d.items():
+                if key in ("sigma_s", "sigma_s_prime", "sigma_a", "anisotropy"):
+                    parts.append(f"{key} {_rgb(val, where + ' ' + key)}")
+                elif key in ("ior", "sample_spacing", "error_bound"):
+                    parts.append(f"{key} {float(val)!r}")
+                elif key == "single_scatter":
+                    parts.append(f"single_scatter {'on' if val else 'off'}")
+                else:
+                    raise StudyError(f"{where}: unknown dipole key {key!r}")
+            body = " ".join(parts) + mm
+            mat.describe = "dipole " + " ".join(parts)
+        else:
+            raise StudyError(f"{where}: dipole is a preset name or a table of coefficients")
+        coat = f" brdf_model {{ {_quote(m['coat'])} }}" if "coat" in m else ""
+        mat.pov = f"finish {{ dipole {{ {body} }}{coat} {extra} }}"
+    elif kind == "finish":
+        f = str(m["finish"])
+        if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", f):
+            mat.pov = f"{pigment}finish {{ {f} {extra} }}"
+        else:
+            mat.pov = f"{pigment}{f}"  # a macro call that expands to a finish
+        mat.describe = f"{f} ({', '.join(includes)})" if includes else f
+    else:
+        mat.pov = str(m["pov"])
+        mat.describe = "POV text"
+    return mat
+
+def load_study(path: Union[str, os.PathLike]) -> Study:
+    """Read and check a study file."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise StudyError(f"{path}: {e}") from None
+    size = data.get("size", [160, 160])
+    if not (isinstance(size, list) and len(size) == 2 and all(isinstance(v, int) and 8 <= v <= 4096 for v in size)):
+        raise StudyError(f"{path}: size: expected [width, height] in pixels, found {size!r}")
+    shapes = dict(SHAPES)
+    shapes.update({k: v["pov"] for k, v in data.get("shape", {}).items()})
+    lights = dict(LIGHTS)
+    lights.update({k: v["pov"] for k, v in data.get("light", {}).items()})
+    use_shapes = data.get("shapes", ["sphere"])
+    use_lights = data.get("lights", ["key"])
+    for what, names, known in (("shape", use_shapes, shapes), ("light", use_lights, lights)):
+        for n in names:
+            if n not in known:
+                raise StudyError(f"{path}: unknown {what} {n!r}; known: {', '.join(known)}")
+    for n in use_shapes:
+        if "MATERIAL" not in shapes[n]:
+            raise StudyError(f"{path}: shape {n!r}: its POV text needs MATERIAL where the material goes")
+    mats = [_material(m, i, path.parent) for i, m in enumerate(data.get("material", []))]
+    if not mats:
+        raise StudyError(f"{path}: no [[material]]")
+    if len({m.name for m in mats}) != len(mats):
+        raise StudyError(f"{path}: material names must be unique")
+    return Study(str(data.get("title", path.stem)), path, size[0], size[1], mats,
+                 {n: shapes[n] for n in use_shapes}, {n: lights[n] for n in use_lights})
+
+def scene_text(study: Study, mat: Material, shape: str, light: str) -> str:
+    """The .pov text of one cell."""
+    inc = "\n".join(f"#include {_quote(i)}" for i in mat.includes)
+    return SCENE_TEMPLATE.format(material=mat.name, shape=shape, light=light, includes=inc,
+                                 lights=study.lights[light], obj=study.shapes[shape].replace("MATERIAL", mat.pov))
+
+# ---------------------------------------------------------------- rendering: local or Dask
+
+def _harness_zip(directory: Path) -> Path:
+    """The ``harness`` package (its .py files) as a zip, for ``Client.upload_file``."""
+    import zipfile
+
+    out = directory / "povray_brdf_harness.zip"
+    pkg = Path(__file__).resolve().parents[1]
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(pkg.rglob("*.py")):
+            z.write(f, f"harness/{f.relative_to(pkg).as_posix()}")
+    return out
+
+def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool = True,
+                connect_timeout: float = 20.0, **common: Any) -> list[Union[runner.RenderResult, Exception]]:
+    """Render ``jobs`` as tasks of the Dask distributed scheduler at ``scheduler``; results in order.
+
+    A failed render comes back as its exception (like ``render_many(return_exceptions=True)``).
+    """
+    try:
+        from distributed import Client, as_completed
+    except ImportError as e:  # the harness works without it; only this backend needs it
+        raise StudyError("--scheduler needs Dask distributed: .venv/bin/pip install 'dask[distributed]' "
+                         f"(the study extra of pyproject.toml); import failed: {e}") from None
+    out: list[Union[runner.RenderResult, Exception, None]] = [None] * len(jobs)
+    prog = runner.Progress(len(jobs), progress and len(jobs) > 0)
+    try:
+        client = Client(scheduler, timeout=f"{connect_timeout}s")
+    except (OSError, TimeoutError) as e:
+        raise StudyError(f"cannot reach the Dask scheduler at {scheduler}: {e}") from None
+    from harness.reports import dask_task
+
+    fork = fork_binary()
+    with client, tempfile.TemporaryDirectory(prefix="study-dask-") as tmp:
+        # The scheduler and the workers may run elsewhere (another venv, no checkout): send
+        # them this harness (a zip placed first on their sys.path); they need the fork binary
+        # and the staged files at the same paths (or POVRAY_BRDF on the workers).
+        # (Not to a cluster inside this process, e.g. LocalCluster(processes=False): the upload
+        # would put the zip first on our own sys.path and reload our own harness from it.)
+        if jobs and client.run_on_scheduler(os.getpid) != os.getpid():
+            client.upload_file(str(_harness_zip(Path(tmp))), load=True)
+        futures = {}
+        for i, job in enumerate(jobs):
+            fut = client.submit(dask_task.render_task, job.scene, {**common, **job.options}, str(fork.path),
+                                pure=False, key=f"povray-brdf-render-{i}-{os.getpid()}-{time.monotonic_ns()}")
+            futures[fut] = i
+        for fut in as_completed(futures):
+            i = futures[fut]
+            try:
+                out[i] = fut.result()
+            except Exception as e:  # noqa: BLE001 - a failed render is reported in its cell
+                out[i] = e
+            prog.tick(not isinstance(out[i], Exception))
+    return out  # type: ignore[return-value]
+
+@dataclass
+class Cell:
+    material: Material
+    shape: str
+    light: str
+    result: Union[runner.RenderResult, Exception, None] = None
+    png: Optional[Path] = None
+
+def run(study: Study, out_dir: Path, *, jobs: Optional[int] = None, scheduler: Optional[str] = None,
+        progress: bool = True) -> dict[str, Any]:
+    """Render every cell of ``study`` into ``out_dir``; write sheet.png, index.html, summary.json."""
+    fork_binary()  # fail early, here, if the fork is missing
+    cells = [Cell(m, s, l) for m in study.materials for s in study.shapes for l in study.lights]
+    rjobs = [runner.RenderJob(scene_text(study, c.material, c.shape, c.light),
+                              {"files": {k: str(v) for k, v in c.material.files.items()}})
+             for c in cells]
+    common = dict(width=study.width, height=study.height, float_exr=True, threads=1)
+    t0 = time.perf_counter()
+    if scheduler:
+        results = render_dask(rjobs, scheduler, progress=progress, **common)
+    else:
+        results = runner.render_many(rjobs, max_workers=jobs, progress=progress, return_exceptions=True,
+                                     binary="fork", **common)
+    wall = time.perf_counter() - t0
+    img_dir = out_dir / "images"
+    img_dir.mkdir(parents=True, exist_ok=True)
+    for i, (c, r) in enumerate(zip(cells, results)):
+        c.result = r
+        if isinstance(r, runner.RenderResult):
+            c.png = exr.write_png_preview(img_dir / f"{i:03d}-{page.slug(c.material.name, 40)}-{c.shape}-{c.light}.png", r.image)
+    plots = polar_plots(study, out_dir / "plots")
+    sheet = contact_sheet(study, cells, out_dir / "sheet.png")
+    summary = {
+        "title": study.title, "study": str(study.path), "backend": f"dask {scheduler}" if scheduler else
+        f"local, {jobs or os.cpu_count()} jobs", "wall_seconds": wall, "renders": len(cells),
+        "failed": sum(isinstance(c.result, Exception) for c in cells), "materials": len(study.materials),
+        "cells": [{"material": c.material.name, "shape": c.shape, "light": c.light,
+                   "trace_seconds": getattr(c.result, "trace_seconds", None),
+                   "parse_seconds": getattr(c.result, "parse_seconds", None),
+                   "peak_memory_bytes": getattr(c.result, "peak_memory_bytes", None),
+                   "worker_pid": (c.result.stats.get("worker_pid") if isinstance(c.result, runner.RenderResult) else None),
+                   "error": str(c.result) if isinstance(c.result, Exception) else None,
+                   "image": str(c.png) if c.png else None} for c in cells],
+    }
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
+    write_html(study, cells, plots, sheet, out_dir / "index.html", summary)
+    return summary
+
+def polar_plots(study: Study, out_dir: Path) -> dict[str, Path]:
+    """Polar plots (:mod:`harness.tools.brdfplot`) of every table material (name -> PNG); a
+    failed plot is reported and skipped."""
+    plots: dict[str, Path] = {}
+    for m in study.materials:
+        if m.table is None:
+            continue
+        try:
+            plots[m.name] = brdfplot.plot(Path(m.table), out_dir / f"{page.slug(m.name, 40)}.png",
+                                          theta_i=(0, 45, 75), title=m.name)
+        except (OSError, ValueError) as e:
+            print(f"study: plot of {m.table} failed: {e}", file=sys.stderr)
+    return plots
+
+def _cell_caption(c: Cell) -> str:
+    r = c.result
+    if isinstance(r, runner.RenderResult):
+        t = f"{r.trace_seconds:.2f} s" if r.trace_seconds is not None else "? s"
+        mb = f"{r.peak_memory_bytes / 2**20:.0f} MB" if r.peak_memory_bytes else "? MB"
+        return f"trace {t}, {mb}"
+    return "FAILED"
+
+def contact_sheet(study: Study, cells: Sequence[Cell], path: Path) -> Path:
+    """A labelled grid: one row per material, one column per (shape, light)."""
+    plt = plotting.pyplot()
+
+    cols = [(s, l) for s in study.shapes for l in study.lights]
+    rows = study.materials
+    cw = 1.9
+    ch = cw * study.height / study.width + 0.35
+    fig, axes = plt.subplots(len(rows), len(cols), figsize=(1.6 + cw * len(cols), 0.6 + ch * len(rows)),
+                             squeeze=False, dpi=100)
+    by_key = {(c.material.name, c.shape, c.light): c for c in cells}
+    for i, m in enumerate(rows):
+        for j, (s, l) in enumerate(cols):
+            ax = axes[i][j]
+            c = by_key[(m.name, s, l)]
+            if isinstance(c.result, runner.RenderResult):
+                ax.imshow(exr.to_display(c.result.image), interpolation="nearest")
+            else:
+                ax.text(0.5, 0.5, "render failed", ha="center", va="center", color="red", fontsize=8,
+                        transform=ax.transAxes)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_xlabel(_cell_caption(c), fontsize=6.5, labelpad=2)
+            if i == 0:
+                ax.set_title(f"{s} / {l}", fontsize=8)
+            if j == 0:
+                ax.set_ylabel(m.name, fontsize=7.5, rotation=0, ha="right", va="center", labelpad=4)
+    fig.suptitle(study.title, fontsize=10)
+    fig.tight_layout(rect=(0, 0, 1, 0.98))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plotting.save(fig, path)
+    return path
+
+def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], sheet: Path, path: Path,
+               summary: dict[str, Any]) -> Path:
+    """index.html: the grid with per-image trace time and memory, each material's text, polar plots."""
+    base = path.parent
+    cols = [(s, l) for s in study.shapes for l in study.lights]
+    by_key = {(c.material.name, c.shape, c.light): c for c in cells}
+    notes = (f"{len(study.materials)} materials x {len(study.shapes)} shapes x {len(study.lights)} lights = "
+             f"{len(cells)} renders at {study.width}x{study.height} (-A, one thread each), "
+             f"{summary['wall_seconds']:.1f} s wall, backend: {summary['backend']}; {summary['failed']} failed. "
+             f"Study file: {study.path}. Under each image: POV-Ray's own trace time and the render's peak "
+             "memory (maximum resident set size, harness.core.runner).")
+    rows = []
+    for m in study.materials:
+        row: dict[str, Any] = {"material": page.Cell(page.join(page.bold(m.name), page.tag("br"), page.small(m.describe),
+                                                               page.tag("br"), page.code(m.pov)), "wide")}
+        for s, l in cols:
+            c = by_key[(m.name, s, l)]
+            if c.png:
+                row[f"{s} / {l}"] = page.join(page.image(c.png, base, c.material.name, cls=None,
+                                                         width=min(study.width, 200)),
+                                              page.tag("br"), _cell_caption(c))
+            else:
+                row[f"{s} / {l}"] = page.Cell(str(c.result)[:400], "fail")
+        plot = plots.get(m.name)
+        row["BRDF, plane of incidence (1/sr)"] = page.image(plot, base, m.name, cls=None, width=420) if plot else ""
+        rows.append(row)
+    sections = [page.Section("Materials", rows, anchor="materials"),
+                page.Section("Contact sheet", anchor="sheet", body=[page.image(sheet, base, "contact sheet", cls="wide")])]
+    return page.write_page(path, study.title, sections, notes, contents=False)
+
+# ---------------------------------------------------------------- command line
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.reports.study", description=__doc__.split("\n\n")[0])
+    ap.add_argument("study", type=Path, nargs="?", default=REPO_ROOT / "studies" / "example.toml")
+    ap.add_argument("--out", type=Path, default=None, help="output directory (default out/study/<study name>)")
+    ap.add_argument("--jobs", type=int, default=None, help="local renders at a time (default: the CPU count)")
+    ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="send the renders to this Dask distributed scheduler (e.g. tcp://127.0.0.1:8786)")
+    ap.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"), help="override the study's size")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress line")
+    a = ap.parse_args(argv)
+    try:
+        study = load_study(a.study)
+        if a.size:
+            study.width, study.height = a.size
+        out = a.out or OUT_ROOT / a.study.stem
+        summary = run(study, out, jobs=a.jobs, scheduler=a.scheduler, progress=not a.quiet)
+    except (StudyError, BinaryNotFound, RuntimeError, OSError) as e:
+        print(f"study: {e}", file=sys.stderr)
+        return 2
+    traces = [c["trace_seconds"] for c in summary["cells"] if c["trace_seconds"] is not None]
+    print(f"study: {summary['materials']} materials, {summary['renders']} renders "
+          f"({summary['failed']} failed) in {summary['wall_seconds']:.1f} s wall ({summary['backend']}); "
+          f"trace time total {sum(traces):.1f} s")
+    print(f"study: sheet {out / 'sheet.png'}; page {out / 'index.html'}")
+    return 1 if summary["failed"] else 0
+
+if __name__ == "__main__":
+    sys.exit(main())
