@@ -15,36 +15,18 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "shading/microfacet.h"
 #include "shading/model_spec.h"
+#include "shading/models.h"
 #include "shading/optimize.h"
+#include "bytes.h"
+#include "format.h"
 
 namespace shading {
 
 namespace {
 
-constexpr double kDeg = kPi / 180.0;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-float le_f32(const uint8_t* p) {
-    uint32_t u = uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
-    float f;
-    std::memcpy(&f, &u, 4);
-    return f;
-}
-
-void unravel(const TableGeometry& g, uint64_t cell, uint32_t idx[4]) {
-    idx[3] = 0;
-    for (int a = g.axes() - 1; a >= 0; --a) {
-        idx[a] = uint32_t(cell % g.n[a]);
-        cell /= g.n[a];
-    }
-}
-
-// tabulate()'s rule: the theta node at 90 deg is sampled half a step inside.
-double theta_node_deg(const TableGeometry& g, int axis, uint32_t i) {
-    const double deg = g.axis_deg(axis, i);
-    return i + 1 == g.n[axis] ? deg - 0.5 * (90.0 / double(g.n[axis] - 1)) : deg;
-}
 
 bool cell_valid(const TableGrid& grid, uint64_t cell) {
     const int C = grid.geom.channels;
@@ -55,21 +37,6 @@ bool cell_valid(const TableGrid& grid, uint64_t cell) {
 
 // Model value compared with channel k of a C-channel table.
 inline double channel_of(const Rgb& v, int k, int C) { return C == 1 ? v.average() : v[k]; }
-
-std::string num17(double v) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%.17g", v);
-    return b;
-}
-std::string num6(double v) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%.6g", v);
-    return b;
-}
-std::string rgb_str(const Rgb& c, const std::function<std::string(double)>& fmt) {
-    if (c.r == c.g && c.g == c.b) return fmt(c.r);
-    return fmt(c.r) + "," + fmt(c.g) + "," + fmt(c.b);
-}
 
 double median_of(std::vector<double> v) {
     if (v.empty()) return 0;
@@ -94,7 +61,7 @@ TableGrid load_table_grid(const std::string& path, std::string* description) {
     const uint64_t nv = h.payload_bytes / 4;
     std::vector<float> v(nv);
     for (uint64_t k = 0; k < nv; ++k) {
-        float x = le_f32(p + 4 * k);
+        float x = bytes::rd_f32(p + 4 * k);
         if (std::isinf(x))
             throw_table_error(path, h.payload_offset + 4 * k, "a finite value", x > 0 ? "inf" : "-inf");
         v[k] = x >= 0 ? x : std::numeric_limits<float>::quiet_NaN();
@@ -108,11 +75,11 @@ TableGrid table_grid(const BrdfTable& table) { return unfold(table); }
 
 void node_directions(const TableGeometry& g, const uint32_t idx[4], Vec3& wo, Vec3& wi) {
     if (g.layout == TableLayout::Isotropic) {
-        wi = spherical_direction(theta_node_deg(g, 0, idx[0]) * kDeg, 0.0);
-        wo = spherical_direction(theta_node_deg(g, 1, idx[1]) * kDeg, g.axis_deg(2, idx[2]) * kDeg);
+        wi = spherical_direction(g.sample_deg(0, idx[0]) * kDegree, 0.0);
+        wo = spherical_direction(g.sample_deg(1, idx[1]) * kDegree, g.axis_deg(2, idx[2]) * kDegree);
     } else {
-        wi = spherical_direction(theta_node_deg(g, 0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg);
-        wo = spherical_direction(theta_node_deg(g, 2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg);
+        wi = spherical_direction(g.sample_deg(0, idx[0]) * kDegree, g.axis_deg(1, idx[1]) * kDegree);
+        wo = spherical_direction(g.sample_deg(2, idx[2]) * kDegree, g.axis_deg(3, idx[3]) * kDegree);
     }
 }
 
@@ -127,10 +94,10 @@ ErrorStats table_error(const Brdf& model, const TableGrid& grid) {
             ++s.nodata_cells;
             continue;
         }
-        unravel(g, cell, idx);
+        g.unravel(cell, idx);
         ++s.cells;
         // The weight: cos of the node's own theta_i (0 at the 90 deg node).
-        double w = std::cos(g.axis_deg(0, idx[0]) * kDeg);
+        double w = std::cos(g.axis_deg(0, idx[0]) * kDegree);
         if (idx[0] + 1 == g.n[0]) w = 0;
         if (w <= 0) continue;
         Vec3 wo, wi;
@@ -165,13 +132,13 @@ FitData fit_samples(const TableGrid& grid, const FitSampling& sp) {
         }
         FitSample s;
         node_directions(g, idx, s.wo, s.wi);
-        s.weight = std::cos(g.axis_deg(0, idx[0]) * kDeg) * nodes;
+        s.weight = std::cos(g.axis_deg(0, idx[0]) * kDegree) * nodes;
         for (int c = 0; c < C; ++c) s.target[c] = grid.values[cell * C + c];
         d.samples.push_back(s);
     };
     if (g.layout == TableLayout::Isotropic) {
         const uint32_t si = stride(0), sr = stride(1), sp2 = stride(2);
-        const double cone = sp.peak_cone_deg * kDeg;
+        const double cone = sp.peak_cone_deg * kDegree;
         // Theta nodes at or beyond grazing_deg are all kept (each stands for itself): models
         // that diverge at the grazing mirror pair differ most there.
         auto graze = [&](int axis, uint32_t i) { return g.axis_deg(axis, i) >= sp.grazing_deg - 1e-9; };
@@ -210,8 +177,8 @@ FitData fit_samples(const TableGrid& grid, const FitSampling& sp) {
 Rgb estimate_diffuse(const FitData& d) {
     std::vector<double> v[3];
     for (const FitSample& s : d.samples) {
-        if (s.wi.z < std::cos(60 * kDeg) || s.wo.z < std::cos(60 * kDeg)) continue;
-        if (angle_to_mirror(s.wo, s.wi) < 60 * kDeg) continue;
+        if (s.wi.z < std::cos(60 * kDegree) || s.wo.z < std::cos(60 * kDegree)) continue;
+        if (angle_to_mirror(s.wo, s.wi) < 60 * kDegree) continue;
         for (int c = 0; c < d.channels; ++c) v[c].push_back(s.target[c]);
     }
     Rgb kd;
@@ -259,14 +226,14 @@ struct Family {
     bool has_kd = true;
     ScaleMode scale = ScaleMode::Free;
     int nbases = 1;
+    // The models whose linear combination (per channel, plus kd/pi) is fitted, built
+    // directly from the shape parameters x (no spec text in the optimiser's loop).
     std::function<std::vector<BrdfPtr>(const Vector&)> bases;
-    // kd and the per-basis coefficients per channel -> spec; `fmt` formats numbers.
-    std::function<SpecOut(const Vector&, const Rgb&, const std::vector<Rgb>&, const std::function<std::string(double)>&)>
-        spec;
+    // kd and the per-basis coefficients per channel -> the printed spec (6 digits).
+    std::function<SpecOut(const Vector&, const Rgb&, const std::vector<Rgb>&)> spec;
     std::function<bool(const Vector&)> valid_start = nullptr;
 };
 
-// kd + s <= 1 per channel: scale both down when exceeded.
 // Each channel of v above 1 set to 1; true if any was.
 bool clamp_to_one(Rgb& v) {
     bool clamped = false;
@@ -278,6 +245,9 @@ bool clamp_to_one(Rgb& v) {
     return clamped;
 }
 
+// kd + s <= 1 per channel, as the printed spec states them: both scaled down when the sum
+// exceeds 1, then s nudged below 1 - kd where 6-digit printing would round the sum above 1
+// (make_brdf rejects such a spec). True if the fit had to be scaled.
 bool clamp_sum(Rgb& a, Rgb& b) {
     bool clamped = false;
     for (int c = 0; c < 3; ++c) {
@@ -287,6 +257,8 @@ bool clamp_sum(Rgb& a, Rgb& b) {
             b[c] /= s;
             clamped = true;
         }
+        const double printed_a = std::stod(detail::fmt(a[c]));
+        if (printed_a + std::stod(detail::fmt(b[c])) > 1.0) b[c] = 1.0 - printed_a - 1e-6;
     }
     return clamped;
 }
@@ -311,43 +283,59 @@ Family microfacet_family(const std::string& d, const std::string& g, const std::
         fam.scale = ScaleMode::OneMinusKd;
     }
     if (f == "schlick") fam.nbases = 2;
-    fam.bases = [head, f](const Vector& x) {
-        std::string base = head + " m=" + num17(x[0]);
+    const DKind dk = d == "blinn" ? DKind::Blinn : d == "gaussian" ? DKind::Gaussian
+                     : d == "tr"  ? DKind::TrowbridgeReitz : DKind::Beckmann;
+    const GKind gk = g == "vcavity" ? GKind::VCavity : GKind::Smith;
+    fam.bases = [dk, gk, f](const Vector& x) {
+        auto lobe = [&](const FresnelTerm& fresnel) {
+            auto b = std::make_shared<Microfacet>();  // normalised form, kd = 0, rho_s = 1
+            b->d = NormalDistribution::from_m(dk, x[0]);
+            b->g = gk;
+            b->fresnel = fresnel;
+            return b;
+        };
+        FresnelTerm fr;
         std::vector<BrdfPtr> out;
-        if (f == "none" || f == "schlick") out.push_back(make_brdf(base + " f=none"));
-        if (f == "schlick") out.push_back(make_brdf(base + " f=schlick f0=0"));
-        if (f == "dielectric") out.push_back(make_brdf(base + " f=dielectric eta=" + num17(x[1])));
-        if (f == "conductor")
-            out.push_back(make_brdf(base + " f=conductor n=" + num17(x[1]) + "," + num17(x[2]) + "," + num17(x[3]) +
-                                    " k=" + num17(x[4]) + "," + num17(x[5]) + "," + num17(x[6])));
+        if (f == "none" || f == "schlick") out.push_back(lobe(fr));
+        if (f == "schlick") {
+            fr.kind = FKind::Schlick;
+            fr.f0 = Rgb(0.0);
+            out.push_back(lobe(fr));
+        }
+        if (f == "dielectric") {
+            fr.kind = FKind::Dielectric;
+            fr.eta = x[1];
+            out.push_back(lobe(fr));
+        }
+        if (f == "conductor") {
+            fr.kind = FKind::Conductor;
+            fr.n = Rgb(x[1], x[2], x[3]);
+            fr.k = Rgb(x[4], x[5], x[6]);
+            out.push_back(lobe(fr));
+        }
         return out;
     };
-    fam.spec = [head, f](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef,
-                         const std::function<std::string(double)>& fmt) {
+    fam.spec = [head, f](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef) {
         SpecOut o;
         Rgb kd = kd_in, rho;
         std::string fpart;
         if (f == "none" || f == "dielectric") {
             rho = coef[0];
-            fpart = f == "none" ? " f=none" : " f=dielectric eta=" + fmt(x[1]);
+            fpart = f == "none" ? " f=none" : " f=dielectric eta=" + detail::fmt(x[1]);
         } else if (f == "schlick") {
             Rgb f0;
             for (int c = 0; c < 3; ++c) {
                 rho[c] = coef[0][c] + coef[1][c];
                 f0[c] = rho[c] > 0 ? coef[0][c] / rho[c] : 0.04;
             }
-            fpart = " f=schlick f0=" + rgb_str(f0, fmt);
+            fpart = " f=schlick f0=" + detail::fmt(f0);
             add_rgb_params(o.linear, "f0", f0);
         } else {
             rho = Rgb(1.0) - kd;
-            fpart = " f=conductor n=" + fmt(x[1]) + "," + fmt(x[2]) + "," + fmt(x[3]) + " k=" + fmt(x[4]) + "," +
-                    fmt(x[5]) + "," + fmt(x[6]);
+            fpart = " f=conductor n=" + detail::fmt(Rgb(x[1], x[2], x[3])) + " k=" + detail::fmt(Rgb(x[4], x[5], x[6]));
         }
         o.clamped = clamp_sum(kd, rho);
-        // Values printed with fewer digits may round the sum above 1: nudge down.
-        for (int c = 0; c < 3; ++c)
-            if (std::stod(fmt(kd[c])) + std::stod(fmt(rho[c])) > 1.0) rho[c] = 1.0 - std::stod(fmt(kd[c])) - 1e-6;
-        o.spec = head + " m=" + fmt(x[0]) + fpart + " kd=" + rgb_str(kd, fmt) + " rho_s=" + rgb_str(rho, fmt);
+        o.spec = head + " m=" + detail::fmt(x[0]) + fpart + " kd=" + detail::fmt(kd) + " rho_s=" + detail::fmt(rho);
         add_rgb_params(o.linear, "kd", kd);
         add_rgb_params(o.linear, "rho_s", rho);
         return o;
@@ -365,20 +353,20 @@ Family ward_family(bool aniso) {
     } else {
         fam.shape.push_back({"alpha", 1e-3, 1.0, true, {0.03, 0.08, 0.15, 0.3, 0.5}});
     }
-    auto rough = [aniso](const Vector& x, const std::function<std::string(double)>& fmt) {
-        return aniso ? " ax=" + fmt(x[0]) + " ay=" + fmt(x[1]) : " alpha=" + fmt(x[0]);
+    fam.bases = [aniso](const Vector& x) {
+        auto b = std::make_shared<Ward>();  // rho_d = 0, rho_s = 1
+        b->rho_d = Rgb(0.0);
+        b->rho_s = Rgb(1.0);
+        b->ax = x[0];
+        b->ay = aniso ? x[1] : x[0];
+        return std::vector<BrdfPtr>{b};
     };
-    fam.bases = [rough](const Vector& x) {
-        return std::vector<BrdfPtr>{make_brdf("ward rho_d=0 rho_s=1" + rough(x, num17))};
-    };
-    fam.spec = [rough](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef,
-                       const std::function<std::string(double)>& fmt) {
+    fam.spec = [aniso](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef) {
+        const std::string rough = aniso ? " ax=" + detail::fmt(x[0]) + " ay=" + detail::fmt(x[1]) : " alpha=" + detail::fmt(x[0]);
         SpecOut o;
         Rgb kd = kd_in, rho = coef[0];
         o.clamped = clamp_sum(kd, rho);
-        for (int c = 0; c < 3; ++c)
-            if (std::stod(fmt(kd[c])) + std::stod(fmt(rho[c])) > 1.0) rho[c] = 1.0 - std::stod(fmt(kd[c])) - 1e-6;
-        o.spec = "ward rho_d=" + rgb_str(kd, fmt) + " rho_s=" + rgb_str(rho, fmt) + rough(x, fmt);
+        o.spec = "ward rho_d=" + detail::fmt(kd) + " rho_s=" + detail::fmt(rho) + rough;
         add_rgb_params(o.linear, "rho_d", kd);
         add_rgb_params(o.linear, "rho_s", rho);
         return o;
@@ -392,13 +380,16 @@ Family oren_nayar_family() {
     fam.has_kd = false;
     fam.shape.push_back({"sigma", 0.0, kPi / 2, false, {0.05, 0.3, 0.6, 1.0}});
     fam.bases = [](const Vector& x) {
-        return std::vector<BrdfPtr>{make_brdf("oren_nayar rho=1 sigma=" + num17(x[0]))};
+        auto b = std::make_shared<OrenNayar>();
+        b->rho = Rgb(1.0);
+        b->sigma = x[0];
+        return std::vector<BrdfPtr>{b};
     };
-    fam.spec = [](const Vector& x, const Rgb&, const std::vector<Rgb>& coef, const std::function<std::string(double)>& fmt) {
+    fam.spec = [](const Vector& x, const Rgb&, const std::vector<Rgb>& coef) {
         SpecOut o;
         Rgb rho = coef[0];
         o.clamped = clamp_to_one(rho);
-        o.spec = "oren_nayar rho=" + rgb_str(rho, fmt) + " sigma=" + fmt(x[0]);
+        o.spec = "oren_nayar rho=" + detail::fmt(rho) + " sigma=" + detail::fmt(x[0]);
         add_rgb_params(o.linear, "rho", rho);
         return o;
     };
@@ -410,11 +401,11 @@ Family lambert_family() {
     fam.name = "lambert";
     fam.nbases = 0;
     fam.bases = [](const Vector&) { return std::vector<BrdfPtr>{}; };
-    fam.spec = [](const Vector&, const Rgb& kd_in, const std::vector<Rgb>&, const std::function<std::string(double)>& fmt) {
+    fam.spec = [](const Vector&, const Rgb& kd_in, const std::vector<Rgb>&) {
         SpecOut o;
         Rgb kd = kd_in;
         o.clamped = clamp_to_one(kd);
-        o.spec = "lambert rho=" + rgb_str(kd, fmt);
+        o.spec = "lambert rho=" + detail::fmt(kd);
         add_rgb_params(o.linear, "rho", kd);
         return o;
     };
@@ -439,26 +430,36 @@ Family lafortune_family(int k) {
             if (!(x[2 * j + 1] > x[2 * j - 1])) return false;
         return true;
     };
-    auto lobe = [](const Vector& x, int j, const std::function<std::string(double)>& fmt) {
-        double R = x[2 * j], n = x[2 * j + 1], c = lafortune_c(n);
-        return fmt(-c) + "," + fmt(-c) + "," + fmt(c * R) + "," + fmt(n);
+    // Lobe j of x: C = (-c, -c, c R), exponent n (weight 1 in a basis).
+    auto lobe = [](const Vector& x, int j) {
+        Lafortune::Lobe l;
+        const double R = x[2 * j], n = x[2 * j + 1], c = lafortune_c(n);
+        l.cx = l.cy = -c;
+        l.cz = c * R;
+        l.n = n;
+        return l;
     };
     fam.bases = [k, lobe](const Vector& x) {
         std::vector<BrdfPtr> out;
-        for (int j = 0; j < k; ++j) out.push_back(make_brdf("lafortune kd=0 lobe=" + lobe(x, j, num17) + ",1"));
+        for (int j = 0; j < k; ++j) {
+            auto b = std::make_shared<Lafortune>();  // kd = 0
+            b->lobes.push_back(lobe(x, j));
+            out.push_back(b);
+        }
         return out;
     };
-    fam.spec = [k, lobe](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef,
-                         const std::function<std::string(double)>& fmt) {
+    fam.spec = [k, lobe](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef) {
         SpecOut o;
         Rgb kd = kd_in;
         o.clamped = clamp_to_one(kd);
-        o.spec = "lafortune kd=" + rgb_str(kd, fmt);
+        o.spec = "lafortune kd=" + detail::fmt(kd);
         add_rgb_params(o.linear, "kd", kd);
         for (int j = 0; j < k; ++j) {
             Rgb w = coef[j];
             for (int c = 0; c < 3; ++c) w[c] = std::min(w[c], 100.0);
-            o.spec += " lobe=" + lobe(x, j, fmt) + "," + fmt(w.r) + "," + fmt(w.g) + "," + fmt(w.b);
+            const Lafortune::Lobe l = lobe(x, j);
+            o.spec += " lobe=" + detail::fmt(l.cx) + "," + detail::fmt(l.cy) + "," + detail::fmt(l.cz) + "," + detail::fmt(l.n) + "," + detail::fmt(w.r) + "," +
+                      detail::fmt(w.g) + "," + detail::fmt(w.b);
             add_rgb_params(o.linear, "lobe" + std::to_string(j + 1) + "_w", w);
         }
         return o;
@@ -798,7 +799,7 @@ FitResult fit_model(const FitData& data, const std::string& family, const FitOpt
             std::vector<Rgb> S = pb.eval_bases(fam.bases(x)), coef;
             Rgb kd;
             pb.solve_linear(S, nullptr, kd, coef);
-            return fam.spec(x, kd, coef, num6);
+            return fam.spec(x, kd, coef);
         };
         cands.push_back({lm, spec_of(lm)});
         if (opt.irls_rounds > 1) {
@@ -809,7 +810,7 @@ FitResult fit_model(const FitData& data, const std::string& family, const FitOpt
             cands.push_back({plain, spec_of(plain)});
         }
         // Plain least squares unless the robust fit follows the bulk of the data clearly
-        // better (trimmed error below 0.8 x plain's): outliers were present.
+        // better (trimmed error below half of plain's): outliers were present.
         size_t pick = 0;
         if (cands.size() == 2) {
             double tr_robust = trimmed_sample_error(data, *make_brdf(cands[0].second.spec), 0.01);

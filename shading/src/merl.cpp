@@ -7,6 +7,9 @@
 #include <limits>
 #include <sstream>
 
+#include "bytes.h"
+#include "format.h"
+
 namespace shading {
 
 namespace {
@@ -21,25 +24,8 @@ Vec3 rot_y(const Vec3& v, double a) {
     return {v.x * c + v.z * s, v.y, -v.x * s + v.z * c};
 }
 
-std::string num(double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.9g", v);
-    return buf;
-}
-
-int32_t rd_i32(const uint8_t* p) {
-    uint32_t u = uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
-    int32_t i;
-    std::memcpy(&i, &u, 4);
-    return i;
-}
-double rd_f64(const uint8_t* p) {
-    uint64_t u = 0;
-    for (int k = 7; k >= 0; --k) u = u << 8 | p[k];
-    double d;
-    std::memcpy(&d, &u, 8);
-    return d;
-}
+using bytes::rd_f64;
+using bytes::rd_i32;
 
 const char* kChannelName[3] = {"R", "G", "B"};
 
@@ -131,7 +117,7 @@ std::unique_ptr<MerlBrdf> MerlBrdf::parse(const uint8_t* data, size_t size, cons
     for (uint64_t k = 0; k < count; ++k) {
         double v = rd_f64(data + 12 + 8 * k);
         if (std::isinf(v))
-            throw_table_error(name, 12 + 8 * k, "a finite sample or a no-data marker (negative or NaN)", num(v));
+            throw_table_error(name, 12 + 8 * k, "a finite sample or a no-data marker (negative or NaN)", detail::fmt(v, 9));
     }
     std::vector<double> raw(count);
     for (uint64_t k = 0; k < count; ++k) raw[k] = rd_f64(data + 12 + 8 * k);
@@ -176,23 +162,22 @@ std::unique_ptr<BrdfTable> merl_to_table(const MerlBrdf& merl, const MerlConvert
     TableGrid grid(TableGeometry::isotropic(opt.step_deg, opt.channels));
     const TableGeometry& g = grid.geom;
     const int C = g.channels;
-    constexpr double kDeg = kPi / 180.0;
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (uint32_t i = 0; i < g.n[0]; ++i) {
-        Vec3 wi = spherical_direction(g.axis_deg(0, i) * kDeg, 0.0);
+        Vec3 wi = spherical_direction(g.axis_deg(0, i) * kDegree, 0.0);
         for (uint32_t r = 0; r < g.n[1]; ++r)
             for (uint32_t p = 0; p < g.n[2]; ++p) {
-                Vec3 wo = spherical_direction(g.axis_deg(1, r) * kDeg, g.axis_deg(2, p) * kDeg);
+                Vec3 wo = spherical_direction(g.axis_deg(1, r) * kDegree, g.axis_deg(2, p) * kDegree);
                 MerlBrdf::Bin b = merl.bin(wi, wo);
                 Rgb v = merl.value(b);
                 for (int c = 0; c < 3; ++c)
                     if (!(v[c] >= 0) && opt.nodata == NoDataPolicy::Reject) {
                         std::ostringstream e;
-                        e << "a sample >= 0 for table node theta_i=" << num(g.axis_deg(0, i))
-                          << " theta_r=" << num(g.axis_deg(1, r)) << " phi=" << num(g.axis_deg(2, p))
+                        e << "a sample >= 0 for table node theta_i=" << detail::fmt(g.axis_deg(0, i), 9)
+                          << " theta_r=" << detail::fmt(g.axis_deg(1, r), 9) << " phi=" << detail::fmt(g.axis_deg(2, p), 9)
                           << " deg (bin theta_h=" << b.theta_h << " theta_d=" << b.theta_d << " phi_d=" << b.phi_d
                           << ", channel " << kChannelName[c] << "; no-data policy: reject)";
-                        throw_table_error(merl.name(), merl.file_offset(b, c), e.str(), num(v[c] / MerlBrdf::kScale[c]));
+                        throw_table_error(merl.name(), merl.file_offset(b, c), e.str(), detail::fmt(v[c] / MerlBrdf::kScale[c], 9));
                     }
                 const uint64_t cell = grid.cell(i, r, p);
                 if (C == 1) {

@@ -1,4 +1,4 @@
-// Levenberg-Marquardt, Nelder-Mead with restarts, small SPD solves and NNLS (optimize.h).
+// Levenberg-Marquardt, small SPD solves and NNLS (optimize.h).
 #include "shading/optimize.h"
 
 #include <algorithm>
@@ -241,112 +241,6 @@ LmResult levenberg_marquardt(const ResidualFn& rfn, const Vector& x0, const Vect
         for (size_t a = 0; a < nf; ++a)
             for (size_t b = 0; b < nf; ++b) res.jtj_inverse[freeidx[a] * n + freeidx[b]] = Finv[a * nf + b];
     return res;
-}
-
-// ---------------------------------------------------------------- Nelder-Mead
-
-namespace {
-
-NelderMeadResult nelder_mead_once(const ObjectiveFn& f, const Vector& x0, const Vector& step, const Vector& lo,
-                                  const Vector& hi, const NelderMeadOptions& opt, int budget) {
-    const size_t n = x0.size();
-    std::vector<Vector> p(n + 1, x0);
-    Vector fv(n + 1);
-    int evals = 0;
-    auto F = [&](Vector& x) {
-        clamp_to(x, lo, hi);
-        ++evals;
-        double v = f(x);
-        return std::isfinite(v) ? v : std::numeric_limits<double>::infinity();
-    };
-    for (size_t j = 0; j < n; ++j) {
-        p[j + 1][j] += step[j];
-        // A vertex clamped back onto x0 would make the simplex degenerate: step the other way.
-        Vector t = p[j + 1];
-        clamp_to(t, lo, hi);
-        if (t[j] == x0[j]) p[j + 1][j] = x0[j] - step[j];
-    }
-    for (size_t k = 0; k <= n; ++k) fv[k] = F(p[k]);
-    std::vector<size_t> idx(n + 1);
-    while (evals < budget) {
-        std::iota(idx.begin(), idx.end(), 0);
-        std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return fv[a] < fv[b]; });
-        const size_t best = idx[0], worst = idx[n], second = idx[n - 1];
-        double diam = 0, xn = 0;
-        for (size_t k = 0; k <= n; ++k)
-            for (size_t j = 0; j < n; ++j) diam = std::max(diam, std::abs(p[k][j] - p[best][j]));
-        for (size_t j = 0; j < n; ++j) xn = std::max(xn, std::abs(p[best][j]));
-        if (fv[worst] - fv[best] <= opt.ftol * (std::abs(fv[best]) + opt.ftol) && diam <= opt.xtol * (xn + opt.xtol))
-            break;
-        Vector c(n, 0.0);
-        for (size_t k = 0; k <= n; ++k)
-            if (k != worst)
-                for (size_t j = 0; j < n; ++j) c[j] += p[k][j] / double(n);
-        auto along = [&](double t) {
-            Vector x(n);
-            for (size_t j = 0; j < n; ++j) x[j] = c[j] + t * (p[worst][j] - c[j]);
-            return x;
-        };
-        Vector xr = along(-1.0);
-        double fr = F(xr);
-        if (fr < fv[best]) {
-            Vector xe = along(-2.0);
-            double fe = F(xe);
-            if (fe < fr) {
-                p[worst] = xe;
-                fv[worst] = fe;
-            } else {
-                p[worst] = xr;
-                fv[worst] = fr;
-            }
-        } else if (fr < fv[second]) {
-            p[worst] = xr;
-            fv[worst] = fr;
-        } else {
-            Vector xc = fr < fv[worst] ? along(-0.5) : along(0.5);
-            double fc = F(xc);
-            if (fc < std::min(fr, fv[worst])) {
-                p[worst] = xc;
-                fv[worst] = fc;
-            } else {  // shrink towards the best vertex
-                for (size_t k = 0; k <= n; ++k) {
-                    if (k == best) continue;
-                    for (size_t j = 0; j < n; ++j) p[k][j] = p[best][j] + 0.5 * (p[k][j] - p[best][j]);
-                    fv[k] = F(p[k]);
-                }
-            }
-        }
-    }
-    size_t b = size_t(std::min_element(fv.begin(), fv.end()) - fv.begin());
-    NelderMeadResult r;
-    r.x = p[b];
-    r.value = fv[b];
-    r.evaluations = evals;
-    return r;
-}
-
-}  // namespace
-
-NelderMeadResult nelder_mead(const ObjectiveFn& f, const Vector& x0, const Vector& step, const Vector& lower,
-                             const Vector& upper, const NelderMeadOptions& opt) {
-    if (step.size() != x0.size()) throw std::invalid_argument("nelder_mead: step must have the parameters' size");
-    NelderMeadResult best = nelder_mead_once(f, x0, step, lower, upper, opt, opt.max_evaluations);
-    for (int k = 0; k < opt.max_restarts && best.evaluations < opt.max_evaluations; ++k) {
-        // A fresh simplex of the original size around the best point.
-        NelderMeadResult again =
-            nelder_mead_once(f, best.x, step, lower, upper, opt, opt.max_evaluations - best.evaluations);
-        again.evaluations += best.evaluations;
-        again.restarts = k + 1;
-        bool gained = again.value < best.value - opt.ftol * (std::abs(best.value) + opt.ftol);
-        if (again.value <= best.value) {
-            best = again;
-        } else {
-            best.evaluations = again.evaluations;
-            best.restarts = k + 1;
-        }
-        if (!gained) break;
-    }
-    return best;
 }
 
 // ---------------------------------------------------------------- NNLS

@@ -8,12 +8,11 @@
 #include <limits>
 #include <sstream>
 
+#include "format.h"
+
 namespace shading {
 
 namespace {
-
-constexpr double kDeg = kPi / 180.0;
-constexpr double kRadToDeg = 180.0 / kPi;
 
 // Node counts the format accepts: theta down to 0.01 deg, phi likewise. Anything above is
 // a corrupt header, not a table (a 0.01 deg isotropic table is already ~2 TB).
@@ -38,23 +37,17 @@ uint64_t mul_checked(uint64_t a, uint64_t b) {
     return r;
 }
 
-std::string fmt_g(double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.9g", v);
-    return buf;
-}
-
 bool valid_value(float v) { return std::isfinite(v) && v >= 0.0f; }
 
 // Human-readable node label for error messages.
 std::string cell_label(const TableGeometry& g, const uint32_t idx[4], int channel) {
     std::ostringstream s;
     if (g.layout == TableLayout::Isotropic) {
-        s << "theta_i=" << fmt_g(g.axis_deg(0, idx[0])) << " theta_r=" << fmt_g(g.axis_deg(1, idx[1]))
-          << " phi=" << fmt_g(g.axis_deg(2, idx[2]));
+        s << "theta_i=" << detail::fmt(g.axis_deg(0, idx[0]), 9) << " theta_r=" << detail::fmt(g.axis_deg(1, idx[1]), 9)
+          << " phi=" << detail::fmt(g.axis_deg(2, idx[2]), 9);
     } else {
-        s << "theta_i=" << fmt_g(g.axis_deg(0, idx[0])) << " phi_i=" << fmt_g(g.axis_deg(1, idx[1]))
-          << " theta_r=" << fmt_g(g.axis_deg(2, idx[2])) << " phi_r=" << fmt_g(g.axis_deg(3, idx[3]));
+        s << "theta_i=" << detail::fmt(g.axis_deg(0, idx[0]), 9) << " phi_i=" << detail::fmt(g.axis_deg(1, idx[1]), 9)
+          << " theta_r=" << detail::fmt(g.axis_deg(2, idx[2]), 9) << " phi_r=" << detail::fmt(g.axis_deg(3, idx[3]), 9);
     }
     s << " deg, channel " << channel;
     return s.str();
@@ -63,16 +56,7 @@ std::string cell_label(const TableGeometry& g, const uint32_t idx[4], int channe
 std::string value_text(float v) {
     if (std::isnan(v)) return "nan";
     if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-    return fmt_g(v);
-}
-
-// Cell index -> per-axis indices of an unfolded grid.
-void unravel(const TableGeometry& g, uint64_t cell, uint32_t idx[4]) {
-    idx[3] = 0;
-    for (int a = g.axes() - 1; a >= 0; --a) {
-        idx[a] = uint32_t(cell % g.n[a]);
-        cell /= g.n[a];
-    }
+    return detail::fmt(v, 9);
 }
 
 // Fill the invalid entries of one line from the nearest valid entries on either side
@@ -121,7 +105,7 @@ ReciprocityStats reciprocity_of(const TableGeometry& g, const float* v) {
     const uint64_t cells = g.cells();
     uint32_t idx[4], sw[4];
     for (uint64_t c = 0; c < cells; ++c) {
-        unravel(g, c, idx);
+        g.unravel(c, idx);
         uint64_t other;
         if (g.layout == TableLayout::Isotropic) {
             if (idx[0] >= idx[1]) continue;  // each unordered pair once, diagonal excluded
@@ -255,7 +239,7 @@ std::string TableGeometry::describe() const {
     std::ostringstream s;
     s << (layout == TableLayout::Isotropic ? "isotropic " : "anisotropic ");
     for (int a = 0; a < axes(); ++a) s << (a ? "x" : "") << n[a];
-    s << " (theta " << fmt_g(step_deg(0)) << " deg, phi " << fmt_g(step_deg(layout == TableLayout::Isotropic ? 2 : 1))
+    s << " (theta " << detail::fmt(step_deg(0), 9) << " deg, phi " << detail::fmt(step_deg(layout == TableLayout::Isotropic ? 2 : 1), 9)
       << " deg), " << channels << (channels == 1 ? " channel" : " channels");
     if (folded) s << ", reciprocity-folded";
     return s.str();
@@ -435,14 +419,14 @@ void BrdfTable::compute_albedo() {
     std::vector<AxisPos> tpos(nt), ppos(np);
     std::vector<double> tw(nt);
     for (uint32_t j = 0; j < nt; ++j) {
-        double a = j * dt * kDeg, b = (j + 1) * dt * kDeg;
+        double a = j * dt * kDegree, b = (j + 1) * dt * kDegree;
         // Exact integral of cos(t) sin(t) over the band: a constant f integrates exactly.
         tw[j] = 0.5 * (sqr(std::sin(b)) - sqr(std::sin(a)));
         tpos[j] = locate(ta, (j + 0.5) * dt, Interp::Linear);
     }
     for (uint32_t k = 0; k < np; ++k) ppos[k] = locate(iso ? 2 : 3, (k + 0.5) * dp, Interp::Linear);
     // Isotropic: the phi integral over [0, 2pi) is twice the one over [0, pi].
-    const double phi_w = dp * kDeg * (iso ? 2.0 : 1.0);
+    const double phi_w = dp * kDegree * (iso ? 2.0 : 1.0);
 
     albedo_.assign(geom_.n[0], Rgb(0.0));
     const uint32_t n_phi_i = iso ? 1 : geom_.n[1];
@@ -500,7 +484,7 @@ uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::st
         for (int c = 0; c < C; ++c) {
             float x = v[cell * C + c];
             if (std::isinf(x)) {
-                unravel(g, cell, idx);
+                g.unravel(cell, idx);
                 throw_table_error(name, (cell * C + c) * 4,
                                   "a finite value or a no-data marker (NaN or < 0) at " + cell_label(g, idx, c),
                                   value_text(x));
@@ -514,7 +498,7 @@ uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::st
     }
     if (bad_cells == 0) return 0;
     if (policy == NoDataPolicy::Reject) {
-        unravel(g, first_bad / C, idx);
+        g.unravel(first_bad / C, idx);
         throw_table_error(name, first_bad * 4,
                           "a value >= 0 at " + cell_label(g, idx, int(first_bad % C)) + " (no-data policy: reject)",
                           value_text(v[first_bad]));
@@ -562,7 +546,7 @@ uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::st
     }
     for (size_t k = 0; k < v.size(); ++k)
         if (!valid_value(v[k])) {
-            unravel(g, k / C, idx);
+            g.unravel(k / C, idx);
             throw_table_error(name, k * 4,
                               "at least one valid value in channel " + std::to_string(k % C) + " to fill " +
                                   cell_label(g, idx, int(k % C)) + " from",
@@ -589,8 +573,8 @@ std::unique_ptr<BrdfTable> build_table(TableGrid grid, const BuildOptions& opt) 
     ReciprocityStats rs = reciprocity(grid);
     if (rs.max_abs > 0) {
         if (!info.description.empty()) info.description += "; ";
-        info.description += "symmetrised when folded (reciprocity error max " + fmt_g(rs.max_abs) + " 1/sr, rel " +
-                            fmt_g(rs.max_rel) + ")";
+        info.description += "symmetrised when folded (reciprocity error max " + detail::fmt(rs.max_abs, 9) + " 1/sr, rel " +
+                            detail::fmt(rs.max_rel, 9) + ")";
     }
     g.folded = true;
     const uint32_t n = g.n[0], np = g.n[2];
@@ -615,7 +599,7 @@ TableGrid unfold(const BrdfTable& table) {
     const int C = g.channels;
     uint32_t idx[4];
     for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
-        unravel(g, cell, idx);
+        g.unravel(cell, idx);
         for (int c = 0; c < C; ++c) grid.values[cell * C + c] = table.node(idx[0], idx[1], idx[2], idx[3], c);
     }
     return grid;
@@ -626,9 +610,18 @@ TableGrid unfold(const BrdfTable& table) {
 // 1.4e6 /sr for a TR lobe with m = 0.15) while f cos_i stays finite; a node holding the
 // divergent value would make every lookup in the last cell a firefly (f cos = 3000 instead
 // of 11 at 89.5 deg). Nothing renders the node itself: POV's weight has cos_i = 0 there.
-static double grazing_safe(const TableGeometry& g, int axis, uint32_t i) {
-    const double deg = g.axis_deg(axis, i);
-    return i + 1 == g.n[axis] ? deg - 0.5 * (90.0 / double(g.n[axis] - 1)) : deg;
+double TableGeometry::sample_deg(int axis, uint32_t i) const {
+    const double deg = axis_deg(axis, i);
+    const bool theta = !is_phi_axis(axis);
+    return theta && i + 1 == n[axis] ? deg - 0.5 * (90.0 / double(n[axis] - 1)) : deg;
+}
+
+void TableGeometry::unravel(uint64_t cell, uint32_t idx[4]) const {
+    idx[3] = 0;
+    for (int a = axes() - 1; a >= 0; --a) {
+        idx[a] = uint32_t(cell % n[a]);
+        cell /= n[a];
+    }
 }
 
 TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
@@ -638,19 +631,19 @@ TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
     const bool iso = g.layout == TableLayout::Isotropic;
     uint32_t idx[4];
     for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
-        unravel(g, cell, idx);
+        g.unravel(cell, idx);
         Vec3 wi, wo;
         if (iso) {
-            wi = spherical_direction(grazing_safe(g, 0, idx[0]) * kDeg, 0.0);
-            wo = spherical_direction(grazing_safe(g, 1, idx[1]) * kDeg, g.axis_deg(2, idx[2]) * kDeg);
+            wi = spherical_direction(g.sample_deg(0, idx[0]) * kDegree, 0.0);
+            wo = spherical_direction(g.sample_deg(1, idx[1]) * kDegree, g.axis_deg(2, idx[2]) * kDegree);
         } else {
-            wi = spherical_direction(grazing_safe(g, 0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg);
-            wo = spherical_direction(grazing_safe(g, 2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg);
+            wi = spherical_direction(g.sample_deg(0, idx[0]) * kDegree, g.axis_deg(1, idx[1]) * kDegree);
+            wo = spherical_direction(g.sample_deg(2, idx[2]) * kDegree, g.axis_deg(3, idx[3]) * kDegree);
         }
         Rgb v = brdf.f(wo, wi);
         for (int c = 0; c < 3; ++c)
             if (!std::isfinite(v[c]) || v[c] < 0)
-                throw std::runtime_error("tabulate: " + brdf.describe() + " returned " + fmt_g(v[c]) + " at " +
+                throw std::runtime_error("tabulate: " + brdf.describe() + " returned " + detail::fmt(v[c], 9) + " at " +
                                          cell_label(g, idx, c));
         if (C == 1)
             grid.values[cell] = float(v.average());
@@ -668,12 +661,12 @@ TableGrid resample(const BrdfTable& src, const TableGeometry& geometry, Interp i
     const int C = g.channels;
     uint32_t idx[4];
     for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
-        unravel(g, cell, idx);
+        g.unravel(cell, idx);
         Rgb v = g.layout == TableLayout::Isotropic
-                    ? src.eval_iso(g.axis_deg(0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg,
-                                   g.axis_deg(2, idx[2]) * kDeg, interp)
-                    : src.eval_aniso(g.axis_deg(0, idx[0]) * kDeg, g.axis_deg(1, idx[1]) * kDeg,
-                                     g.axis_deg(2, idx[2]) * kDeg, g.axis_deg(3, idx[3]) * kDeg, interp);
+                    ? src.eval_iso(g.axis_deg(0, idx[0]) * kDegree, g.axis_deg(1, idx[1]) * kDegree,
+                                   g.axis_deg(2, idx[2]) * kDegree, interp)
+                    : src.eval_aniso(g.axis_deg(0, idx[0]) * kDegree, g.axis_deg(1, idx[1]) * kDegree,
+                                     g.axis_deg(2, idx[2]) * kDegree, g.axis_deg(3, idx[3]) * kDegree, interp);
         if (C == 1)
             grid.values[cell] = float(src.geometry().channels == 1 ? v.r : v.average());
         else
@@ -704,7 +697,7 @@ CheckReport check_table(const BrdfTable& table, const std::vector<double>& theta
     r.recip = reciprocity(table);
     for (double t : theta_i_deg) {
         r.theta_i_deg.push_back(t);
-        r.albedo.push_back(table.directional_albedo(t * kDeg));
+        r.albedo.push_back(table.directional_albedo(t * kDegree));
     }
     const auto& nodes = table.albedo_nodes();
     for (uint32_t i = 0; i < nodes.size(); ++i) {

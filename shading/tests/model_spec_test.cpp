@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <sstream>
 #include <stdexcept>
 
 #include "shading/model_spec.h"
@@ -46,4 +47,39 @@ TEST(ModelSpec, HelpListsEveryModel) {
         // Every model builds from its name alone (all keys have defaults).
         EXPECT_NO_THROW(make_brdf(h.name)) << h.name;
     }
+}
+
+// The help prints each default from the model's class; writing that default explicitly
+// must build the same BRDF as leaving the key out (help and defaults cannot drift apart).
+TEST(ModelSpec, HelpDefaultsAreTheDefaults) {
+    const Vec3 dirs[][2] = {{spherical_direction(0.3, 0.0), spherical_direction(0.5, 2.0)},
+                            {spherical_direction(1.2, 0.4), spherical_direction(0.2, 3.5)},
+                            {spherical_direction(0.7, 1.0), spherical_direction(0.7, 1.0 + kPi)}};
+    int checked = 0;
+    for (const ModelHelp& h : model_help()) {
+        BrdfPtr plain;
+        std::istringstream lines(h.keys);
+        std::string line;
+        while (std::getline(lines, line)) {
+            const size_t eq = line.find('='), def = line.find(", default ");
+            if (eq == std::string::npos || def == std::string::npos) continue;
+            std::string value = line.substr(def + 10);
+            value = value.substr(0, value.find_first_of(" ,;("));
+            if (value.empty() || value == "alpha" || value == "one") continue;  // "default alpha", lobes
+            // A key that belongs to one choice of a word key ("f=dielectric: ...") is compared
+            // under that choice.
+            std::string base = h.name;
+            const size_t choice = line.find(" f=");
+            if (choice != std::string::npos && choice < def) base += line.substr(choice, line.find(':', choice) - choice);
+            plain = make_brdf(base);
+            const std::string spec = base + " " + line.substr(0, eq) + "=" + value;
+            BrdfPtr with = make_brdf(spec);
+            for (const auto& d : dirs) {
+                const Rgb a = plain->f(d[0], d[1]), b = with->f(d[0], d[1]);
+                for (int c = 0; c < 3; ++c) EXPECT_DOUBLE_EQ(a[c], b[c]) << spec;
+            }
+            ++checked;
+        }
+    }
+    EXPECT_GE(checked, 20);  // every model's defaulted keys
 }

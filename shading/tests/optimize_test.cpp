@@ -68,34 +68,6 @@ TEST(LevenbergMarquardt, ExponentialDecayFromAFarStart) {
     EXPECT_NEAR(r.x[1], 0.7, 1e-8);
 }
 
-double rosenbrock(const Vector& x) {
-    double s = 0;
-    for (size_t i = 0; i + 1 < x.size(); ++i) s += 100 * std::pow(x[i + 1] - x[i] * x[i], 2) + std::pow(1 - x[i], 2);
-    return s;
-}
-
-TEST(NelderMead, Rosenbrock2D) {
-    NelderMeadResult r = nelder_mead(rosenbrock, {-1.2, 1.0}, {0.5, 0.5});
-    EXPECT_NEAR(r.x[0], 1.0, 1e-5);
-    EXPECT_NEAR(r.x[1], 1.0, 1e-5);
-    EXPECT_LT(r.value, 1e-10);
-}
-
-TEST(NelderMead, Rosenbrock4DNeedsRestarts) {
-    NelderMeadOptions o;
-    o.max_evaluations = 40000;
-    NelderMeadResult r = nelder_mead(rosenbrock, {-1.2, 1.0, -1.2, 1.0}, {0.5, 0.5, 0.5, 0.5}, {}, {}, o);
-    for (double v : r.x) EXPECT_NEAR(v, 1.0, 1e-4);
-    EXPECT_GE(r.restarts, 1);
-}
-
-TEST(NelderMead, QuadraticWithBounds) {
-    auto f = [](const Vector& x) { return std::pow(x[0] - 3, 2) + 2 * std::pow(x[1] - 0.5, 2); };
-    NelderMeadResult r = nelder_mead(f, {0.0, 0.0}, {1.0, 1.0}, {-5, -5}, {2, 5});
-    EXPECT_NEAR(r.x[0], 2.0, 1e-6);
-    EXPECT_NEAR(r.x[1], 0.5, 1e-5);
-}
-
 TEST(Nnls, ActiveConstraintAndKkt) {
     // A = I (3x3) scaled, b = (1, -2, 3): solution (1, 0, 3).
     Vector ata = {1, 0, 0, 0, 1, 0, 0, 0, 1}, atb = {1, -2, 3};

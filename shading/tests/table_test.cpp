@@ -43,7 +43,7 @@ using namespace shading;
 
 namespace {
 
-constexpr double kDeg = kPi / 180.0;
+constexpr double kDeg = kDegree;  // short name for the many angles below
 
 struct TestLambert final : Brdf {
     Rgb rho;

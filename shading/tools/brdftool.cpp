@@ -1,4 +1,5 @@
-// brdftool: build, convert, inspect, check and plot tabulated BRDFs (.brdf files).
+// brdftool: build, convert, inspect, check and fit tabulated BRDFs (.brdf files); polar plots
+// are drawn by the harness (python -m harness.tools.brdfplot, console script brdf-plot).
 // The logic lives in the shading library (table.h, merl.h); this file is argument
 // handling and printing. Exit status: 0 ok, 1 failure (bad data, failed check), 2 usage.
 #include <atomic>
@@ -366,23 +367,6 @@ int cmd_check(Args& a) {
     return failures.empty() ? 0 : 1;
 }
 
-int cmd_plot(Args& a) {
-    auto t = load_table_file(a.pos[0]);
-    if (t->anisotropic()) std::cerr << "brdftool plot: anisotropic table: plotting the phi_i = 0 slice\n";
-    PlotOptions po;
-    po.theta_i_deg = a.list("--theta-i", po.theta_i_deg);
-    po.log_scale = a.has("--log");
-    po.shared_scale = a.has("--shared-scale");
-    po.panel_radius = int(a.number("--size", po.panel_radius));
-    if (po.panel_radius < 40 || po.panel_radius > 2000) throw UsageError("--size: panel radius in [40, 2000] pixels");
-    const std::string out = a.output();
-    Image img = plot_incidence_plane(*t, po);
-    write_file_bytes(out, encode_png(img));
-    std::cout << out << ": " << img.width << "x" << img.height << " PNG, " << po.theta_i_deg.size() << " slices\n";
-    return 0;
-}
-
-
 // ---------------------------------------------------------------- fit and recommend
 
 struct FamilyFit {
@@ -667,11 +651,6 @@ const std::vector<Command>& commands() {
          "  --tsv         one line per family: family, error, cost, within_tol, spec; then 'table'\n"
          "                and 'choice' lines\n",
          {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads", "--tol", "--costs"}, {"--tsv", "--quiet"}, 1, 1, cmd_recommend},
-        {"plot", "plot FILE.brdf -o OUT.png [--theta-i 0,30,60,75] [--log] [--shared-scale] [--size 180]",
-         "Polar slices in the plane of incidence, one panel per theta_i: light from the left\n"
-         "(orange), radius = f / panel max (or log10, 3 decades, with --log) at angle theta_r\n"
-         "from the normal, mirror side on the right. R, G, B curves (black for one channel).\n",
-         {"-o", "--theta-i", "--size"}, {"--log", "--shared-scale"}, 1, 1, cmd_plot},
     };
     return cmds;
 }

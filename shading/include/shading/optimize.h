@@ -3,10 +3,7 @@
 //  * levenberg_marquardt(): nonlinear least squares min 0.5 |r(x)|^2 with box bounds
 //    (steps are projected onto the box), Marquardt's diagonal scaling, and a forward-
 //    difference Jacobian unless the caller supplies one;
-//  * nelder_mead(): derivative-free minimisation of a scalar function, restarted from the
-//    best point with a fresh simplex until a restart no longer improves it (the classic
-//    remedy for a collapsed simplex), box bounds by clamping;
-//  * solve_spd(): the small symmetric (semi)definite solves both need, by Cholesky with a
+//  * solve_spd(): the small symmetric (semi)definite solves LM needs, by Cholesky with a
 //    diagonal shift when the matrix is singular;
 //  * nnls_small(): non-negative linear least squares for a handful of unknowns (active set).
 //
@@ -51,26 +48,6 @@ struct LmResult {
 // lower/upper may be empty (unbounded) or of x0's size (use +-infinity for one-sided).
 LmResult levenberg_marquardt(const ResidualFn& r, const Vector& x0, const Vector& lower, const Vector& upper,
                              const LmOptions& opt = {}, const JacobianFn& jac = nullptr);
-
-using ObjectiveFn = std::function<double(const Vector& x)>;
-
-struct NelderMeadOptions {
-    int max_evaluations = 20000;
-    double ftol = 1e-12;   // simplex converged when (f_worst - f_best) <= ftol (|f_best| + ftol)
-    double xtol = 1e-10;   // ... and its diameter is below xtol (|x| + xtol)
-    int max_restarts = 5;  // restarts from the best point; stops early when one gains nothing
-};
-
-struct NelderMeadResult {
-    Vector x;
-    double value = 0;
-    int evaluations = 0;
-    int restarts = 0;
-};
-
-// `step`: initial simplex edge per coordinate (x0 + step_j e_j). Bounds as for LM (clamped).
-NelderMeadResult nelder_mead(const ObjectiveFn& f, const Vector& x0, const Vector& step, const Vector& lower = {},
-                             const Vector& upper = {}, const NelderMeadOptions& opt = {});
 
 // Solves A x = b for symmetric positive (semi)definite A (n x n); a singular A gets a small
 // diagonal shift. Returns false only if no shift makes it factorisable.

@@ -1,6 +1,6 @@
 // Tabulated BRDFs: an immutable float32 grid that implements Brdf, the tools that
 // build one (from a model, a simulated measurement, another table), the `.brdf` file
-// format (brdf_data/README.md is its specification) and a small PNG plotter.
+// format (brdf_data/README.md is its specification).
 //
 // Grid and angles (all tables):
 //  * theta axes (theta_i, theta_r) have n nodes on [0, 90] deg, step 90/(n-1); the last
@@ -78,6 +78,12 @@ struct TableGeometry {
     bool is_periodic(int axis) const;    // aniso phi axes
     double step_deg(int axis) const;
     double axis_deg(int axis, uint32_t index) const;  // angle of a node, degrees
+    // The angle at which a model is sampled for a node (tabulate, and fit's comparison):
+    // the node's angle, except the theta node at 90 deg, sampled half a step inside (a
+    // model's f can diverge at grazing while f cos stays finite; see table.cpp).
+    double sample_deg(int axis, uint32_t index) const;
+    // Per-axis node indices of cell `cell` of an unfolded grid (idx[3] = 0 when isotropic).
+    void unravel(uint64_t cell, uint32_t idx[4]) const;
     // Angle tuples stored (folded: pairs theta_i <= theta_r only) and float values.
     // Overflow-checked: throws std::overflow_error if the product does not fit 64 bits.
     uint64_t cells() const;
@@ -274,26 +280,5 @@ void save_table_file(const BrdfTable& table, const std::string& path);
 // Whole-file helpers (TableError naming the path on failure).
 std::vector<uint8_t> read_file_bytes(const std::string& path);
 void write_file_bytes(const std::string& path, const std::vector<uint8_t>& bytes);
-
-// ---------------------------------------------------------------- plots
-
-struct Image {
-    int width = 0, height = 0;
-    std::vector<uint8_t> rgb;  // row-major, 3 bytes per pixel
-};
-// Minimal PNG (8-bit RGB, zlib stream of stored deflate blocks, CRC-32 and Adler-32).
-std::vector<uint8_t> encode_png(const Image& img);
-
-struct PlotOptions {
-    std::vector<double> theta_i_deg = {0, 30, 60, 75};
-    bool log_scale = false;      // radius = log10(f / max), 3 decades, instead of f / max
-    bool shared_scale = false;   // one max over all panels instead of one per panel
-    int panel_radius = 180;      // pixels
-};
-// Polar slices in the plane of incidence, one panel per theta_i: light arrives from the
-// left at theta_i (orange), the radius at angle theta_r from the normal is f(theta_i,
-// theta_r) scaled to the panel maximum; right of the normal is the mirror side (phi = 180),
-// left the back-scatter side (phi = 0). Curves are red/green/blue (black for 1 channel).
-Image plot_incidence_plane(const BrdfTable& table, const PlotOptions& opt);
 
 }  // namespace shading

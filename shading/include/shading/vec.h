@@ -17,6 +17,9 @@ namespace shading {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInvPi = 1.0 / kPi;
+// Radians per degree and degrees per radian (tables and tools speak degrees).
+constexpr double kDegree = kPi / 180.0;
+constexpr double kRadToDeg = 180.0 / kPi;
 
 struct Vec3 {
     double x = 0, y = 0, z = 0;
