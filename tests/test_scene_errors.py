@@ -162,3 +162,44 @@ def test_bad_option(fork, table_files, finish, message):
 def test_bad_model_spec(fork, spec, message):
     msg = scene_error(fork, f'brdf_model {{ "{spec}" }}')
     assert message in msg, msg
+
+
+# ---------------------------------------------------------------- errors inside an include file
+
+INCLUDE = """// materials of a user's own include file
+#declare F_Paint = finish {{
+  diffuse 0.2
+  {finish}
+}}
+"""
+INCLUDE_LINE = 4
+SCENE_WITH_INCLUDE = """#version 3.7;
+global_settings { assumed_gamma 1.0 }
+#include "materials.inc"
+camera { location -3*z look_at 0 }
+light_source { <-3, 4, -5> rgb 1 }
+sphere {
+  0, 1
+  pigment { rgb 1 }
+  finish { F_Paint }
+}
+"""
+
+
+@pytest.mark.parametrize("finish, message", [
+    ('brdf_model { "lambert rho=2" }', "lambert: key 'rho': value 2 out of range [0, 1]"),
+    ('brdf_table { "negative.brdf" }', "negative.brdf: offset 152: expected a value >= 0"),
+    ('brdf_model { "lambert" samples 5000 }', "brdf_model: samples must be a whole number from 0 (off) to 4096"),
+    ('dipole { sigma_s_prime -1 sigma_a 0.1 }', "dipole medium: sigma_s.r = -1: expected a finite value >= 0 (1/mm)"),
+])
+def test_error_in_an_included_file_names_that_file_and_line(fork, table_files, tmp_path, finish, message):
+    """The finish is declared over several lines of an include file and used in the scene: the
+    error points at the include file and the line of the bad keyword, not at scene.pov."""
+    inc = tmp_path / "materials.inc"
+    inc.write_text(INCLUDE.format(finish=finish))
+    with pytest.raises(runner.RenderError) as ei:
+        runner.render(SCENE_WITH_INCLUDE, fork, width=8, height=8,
+                      files={**table_files, "materials.inc": inc})
+    e = ei.value
+    assert (e.file, e.line) == ("materials.inc", INCLUDE_LINE), f"{e.file} line {e.line}: {e.message}"
+    assert message in e.message, e.message
