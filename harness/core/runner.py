@@ -134,13 +134,25 @@ def parse_stats(stderr: str) -> dict[str, float]:
 
 
 def _message_at(stderr: str, m: re.Match) -> str:
-    """The message starting at match ``m``, with POV's 80-column continuation lines joined."""
-    parts = [m["msg"].strip()]
+    """The message starting at match ``m``, with POV's 80-column continuation lines joined.
+
+    POV indents a continuation line by one space where it broke at a space; where a word
+    reached the 80th column it breaks inside the text, and the next line starts without a
+    space (e.g. ``,`` after a long path): such a line follows a full one (79+ characters).
+    """
+    text = m["msg"].strip()
+    prev = stderr[m.start():m.end()]
     for ln in stderr[m.end():].splitlines()[1:]:
-        if not ln.startswith(" ") or ln.strip().startswith(_END_MARKERS) or not ln.strip():
+        if not ln.strip() or ln.strip().startswith(_END_MARKERS) or _MSG_RE.match(ln):
             break
-        parts.append(ln.strip())
-    return " ".join(parts)
+        if ln.startswith(" "):
+            text += " " + ln.strip()
+        elif len(prev) >= 79:
+            text += ln.rstrip()
+        else:
+            break
+        prev = ln
+    return text
 
 
 def parse_messages(stderr: str) -> list[tuple[str, int, str]]:
