@@ -257,7 +257,8 @@ def run(scenes_dir: Path = SCENES_DIR, out_dir: Path = OUT_DIR, *, bless: bool =
             jobs_list.append(runner.RenderJob(s.pov.read_text(), dict(width=s.width, height=s.height,
                                                                       files=scene_files(s), binary=stock)))
     t0 = time.perf_counter()
-    results = runner.render_many(jobs_list, max_workers=jobs, progress=progress, return_exceptions=True)
+    results = runner.render_many(jobs_list, max_workers=jobs, progress=progress, return_exceptions=True,
+                                 progress_label="regress")
     wall = time.perf_counter() - t0
 
     out_dir.mkdir(parents=True, exist_ok=True)
