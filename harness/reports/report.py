@@ -580,12 +580,12 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    from harness.core.paths import REPO_ROOT
+    from harness.core.paths import out_dir
     ap = argparse.ArgumentParser(prog="python -m harness.reports.report",
                                  description="Every finish's error against its expectation and cost against stock "
                                              "phong, as one HTML page (out/report/index.html).")
     ap.add_argument("--quick", action="store_true", help="CI-size renders, one timing pair, quick gonio grid")
-    ap.add_argument("-o", "--out", type=Path, default=REPO_ROOT / "out" / "report", help="output directory")
+    ap.add_argument("-o", "--out", type=Path, default=out_dir("report"), help="output directory (default out/report)")
     ap.add_argument("--only", default=",".join(SECTIONS), help=f"comma-separated parts (default {','.join(SECTIONS)})")
     ap.add_argument("--rounds", type=int, help="timing rounds (default 3, quick 1)")
     ap.add_argument("--no-time", action="store_true", help="errors only, no trace-time ratios")

@@ -51,12 +51,12 @@ from pathlib import Path
 from typing import Any, Optional, Sequence, Union
 
 from harness.core import exr, page, plotting, povwriter, runner, tables
-from harness.core.paths import REPO_ROOT, BinaryNotFound, fork_binary
+from harness.core.paths import REPO_ROOT, BinaryNotFound, fork_binary, in_checkout, out_dir, ready_tables_dir
 from harness.core.progress import bar as progress_bar
 from harness.tools import brdfplot
 
-READY_TABLES = REPO_ROOT / "build" / "brdf_data"
-OUT_ROOT = REPO_ROOT / "out" / "study"
+READY_TABLES = ready_tables_dir()
+OUT_ROOT = out_dir("study")
 
 #: Shape presets: POV text with MATERIAL where the material goes (about 2 units across,
 #: centred 1 unit above the floor at y = 0).
@@ -445,7 +445,9 @@ def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], shee
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.reports.study", description=__doc__.split("\n\n")[0])
-    ap.add_argument("study", type=Path, nargs="?", default=REPO_ROOT / "studies" / "example.toml")
+    ap.add_argument("study", type=Path, nargs="?",
+                    default=REPO_ROOT / "studies" / "example.toml" if in_checkout() else None,
+                    help="the study file (TOML; default: studies/example.toml of the checkout)")
     ap.add_argument("--out", type=Path, default=None, help="output directory (default out/study/<study name>)")
     ap.add_argument("--jobs", type=int, default=None, help="local renders at a time (default: the CPU count)")
     ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -453,6 +455,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"), help="override the study's size")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     a = ap.parse_args(argv)
+    if a.study is None:
+        ap.error("name a study file (TOML); its format: harness/reports/study.py, studies/example.toml")
     try:
         study = load_study(a.study)
         if a.size:
