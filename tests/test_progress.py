@@ -62,9 +62,9 @@ def test_regress_cli_shows_progress(fork, tmp_path, capsys):
 
 
 def test_report_parts_show_progress(capsys):
-    assert report._parallel(lambda x: x * x, [1, 2, 3], 2, "report: models", "model", True) == [1, 4, 9]
+    assert report.run_parallel(lambda x: x * x, [1, 2, 3], 2, "report: models", "model", True) == [1, 4, 9]
     assert re.match(DONE.format(what="report: models", n=3), final(capsys.readouterr().err, "report: models"))
-    assert report._parallel(lambda x: x, [1, 2], 2, "report: models", "model", False) == [1, 2]
+    assert report.run_parallel(lambda x: x, [1, 2], 2, "report: models", "model", False) == [1, 2]
     assert capsys.readouterr().err == ""
 
 

@@ -101,7 +101,7 @@ def test_memory_is_the_renderers_own_within_ten_percent_of_gnu_time(fork, tmp_pa
     job = tmp_path / "job"
     res = runner.render(study.scene_text(st, mat, "sphere", "key"), fork, width=st.width, height=st.height,
                         float_exr=True, threads=1, files={k: str(v) for k, v in mat.files.items()}, workdir=job)
-    p = subprocess.run([str(gnu_time), "-v", *res.command], cwd=job, env=runner._clean_env(job / "home"),
+    p = subprocess.run([str(gnu_time), "-v", *res.command], cwd=job, env=runner.clean_env(job / "home"),
                        capture_output=True, text=True)
     assert p.returncode == 0, p.stderr[-2000:]
     gnu = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) * 1024

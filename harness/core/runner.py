@@ -180,7 +180,9 @@ def parse_error(stderr: str) -> tuple[str, Optional[str], Optional[int]]:
 
 # ---------------------------------------------------------------- running
 
-def _clean_env(home: Path) -> dict[str, str]:
+def clean_env(home: Path) -> dict[str, str]:
+    """The environment a render runs in: this one with ``HOME`` = ``home`` (no user conf or
+    INI) and without ``POVINI``/``POVINC``."""
     env = dict(os.environ)
     env["HOME"] = str(home)
     for k in ("POVINI", "POVINC"):
@@ -354,7 +356,7 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
         if out.exists():
             out.unlink()
         t0 = time.perf_counter()
-        returncode, stdout, stderr, max_rss = _run_measured(cmd, job, _clean_env(home), timeout)
+        returncode, stdout, stderr, max_rss = _run_measured(cmd, job, clean_env(home), timeout)
         wall = time.perf_counter() - t0
         stderr = stderr + stdout
         if returncode is None:

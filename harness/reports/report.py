@@ -127,7 +127,7 @@ def _error_map(*args, **kw) -> Path:
         return error_map_png(*args, **kw)
 
 
-def _parallel(fn: Callable, items: Sequence, workers: int, label: str = "", unit: str = "item",
+def run_parallel(fn: Callable, items: Sequence, workers: int, label: str = "", unit: str = "item",
               progress: bool = False) -> list:
     """``[fn(x) for x in items]``, ``workers`` at a time (threads: each render is a process),
     with a progress bar ``label`` (items done, elapsed, left) when ``progress``."""
@@ -230,7 +230,7 @@ def model_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
              "ratio": None}
         row = model_bench.cost_row(spec)
         return e, dataclasses.replace(row, width=st.time_size[0], height=st.time_size[1])
-    return _parallel(one, list(enumerate(model_bench.MODELS)), st.workers, "report: models", "model", st.progress)
+    return run_parallel(one, list(enumerate(model_bench.MODELS)), st.workers, "report: models", "model", st.progress)
 
 
 def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[tuple[dict, Any]]:
@@ -265,7 +265,7 @@ def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
             log(f"table {e['label']}: rel-RMSE {r['rel_rmse']:.1e}")
             out.append((e, row))
         return out
-    return [x for chunk in _parallel(one, list(enumerate(table_error.MATERIALS.items())), st.workers,
+    return [x for chunk in run_parallel(one, list(enumerate(table_error.MATERIALS.items())), st.workers,
                                      "report: tables", "material", st.progress) for x in chunk]
 
 
@@ -302,7 +302,7 @@ def dipole_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list
         row = bench.Row(label, bench.Side("stock", slab_phong), bench.Side(binary, text),
                         width=st.dipole_time_size[0], height=st.dipole_time_size[1])
         return e, row
-    return _parallel(one, list(enumerate(cases)), st.workers, "report: dipole", "case", st.progress)
+    return run_parallel(one, list(enumerate(cases)), st.workers, "report: dipole", "case", st.progress)
 
 
 # ---------------------------------------------------------------- plots
