@@ -223,6 +223,21 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
     )
 
 
+def write_profile_csv(res: MCResult, path, units: str = "mm") -> None:
+    """The radial profile of ``res`` as a CSV file that ``brdf-scatter-fit`` reads: a comment
+    saying what was simulated, a header with units, then one annulus per line
+    (``r_inner, r_outer, Rd, Rd_err``). Lengths are in ``units`` (the unit the coefficients
+    were given in: sigma in 1/``units``), Rd per unit entering power and area."""
+    lines = [f"# Monte Carlo radial profile (harness.reference.mc_subsurface): sigma_s = {res.sigma_s:g} 1/{units}, "
+             f"sigma_a = {res.sigma_a:g} 1/{units}, g = {res.g:g}, eta = {res.eta:g}, {res.n_photons} photons",
+             "# Rd: exitance per unit entering power and area, mean over each annulus; Rd_err: one standard error",
+             f"r_inner [{units}], r_outer [{units}], Rd [1/{units}^2], Rd_err [1/{units}^2]"]
+    for lo, hi, v, e in zip(res.r_edges[:-1], res.r_edges[1:], res.rd_r, res.rd_r_err):
+        lines.append(f"{lo:.9g}, {hi:.9g}, {v:.9g}, {e:.9g}")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
 # ---------------------------------------------------------------------------------------------
 # Dipole vs MC table
 
@@ -283,8 +298,26 @@ def main(argv=None) -> int:
     ap.add_argument("--albedos", type=lambda s: [float(v) for v in s.split(",")],
                     default=[0.5, 0.8, 0.9, 0.95, 0.99, 0.999])
     ap.add_argument("--etas", type=lambda s: [float(v) for v in s.split(",")], default=[1.0, 1.3, 1.5])
+    ap.add_argument("--profile", nargs=2, type=float, metavar=("SIGMA_S_PRIME", "SIGMA_A"),
+                    help="simulate one medium (coefficients in 1/UNITS; sigma_s = sigma_s' / (1 - g)) and write its "
+                         "radial profile to -o as CSV (what brdf-scatter-fit reads)")
+    ap.add_argument("--eta", type=float, default=1.3, help="relative index of --profile (default 1.3)")
+    ap.add_argument("--units", default="mm", help="length unit of --profile (default mm)")
+    ap.add_argument("-o", "--output", help="the CSV file of --profile")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress bars on stderr")
     args = ap.parse_args(argv)
+    if args.profile:
+        if not args.output:
+            ap.error("--profile needs -o PROFILE.csv")
+        ssp, sa = args.profile
+        st = ssp + sa
+        edges = np.concatenate([[0.0], np.geomspace(0.05, 60.0, 51)]) / st
+        res = simulate(ssp / (1.0 - args.g), sa, g=args.g, eta=args.eta, n_photons=args.photons, seed=args.seed,
+                       r_edges=edges, progress=not args.quiet)
+        write_profile_csv(res, args.output, args.units)
+        print(f"{args.output}: {edges.size - 1} annuli 0 .. {edges[-1]:.4g} {args.units}, Rd = {res.total:.4f} "
+              f"+- {res.total_err:.4f} ({res.n_photons} photons, {res.seconds:.1f} s)")
+        return 0
     if not args.table:
         ap.print_help()
         return 2
