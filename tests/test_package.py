@@ -40,7 +40,7 @@ def fresh(tmp_path_factory):
     for f in ("pyproject.toml", "README.md"):
         shutil.copy(REPO_ROOT / f, src / f)
     shutil.copytree(REPO_ROOT / "harness", src / "harness", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-    p = run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "--no-index",
+    p = run([sys.executable, "-m", "pip", "wheel", "-q", "--no-cache-dir", "--no-deps", "--no-build-isolation", "--no-index",
              "-w", root / "wheels", src])
     assert p.returncode == 0, p.stderr
     wheel = next((root / "wheels").glob("povray_brdf_harness-*.whl"))
@@ -50,7 +50,7 @@ def fresh(tmp_path_factory):
     py = venv / "bin" / "python"
     site = Path(run([py, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"]).stdout.strip())
     (site / "zz-project-dependencies.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
-    p = run([sys.executable, "-m", "pip", "--python", py, "install", "-q", "--no-deps", "--no-index", wheel])
+    p = run([sys.executable, "-m", "pip", "--python", py, "install", "-q", "--no-cache-dir", "--no-deps", "--no-index", wheel])
     assert p.returncode == 0, p.stderr
     away = root / "elsewhere"
     away.mkdir()
