@@ -35,9 +35,11 @@ DSC        := povray_3.7.0.10-2.dsc
 UPSTREAM_FILES := $(CACHE)/povray_3.7.0.10.orig.tar.gz $(CACHE)/povray_3.7.0.10-2.debian.tar.xz $(CACHE)/$(DSC)
 
 # Debian packages the project needs besides POV-Ray's own build dependencies
-# (those come from `apt-get build-dep povray`). `povray` is the stock reference.
+# (those come from `apt-get build-dep povray`). `povray` is the stock reference; `time`
+# (GNU time -v) checks the harness's memory measurement; groff-base renders and checks
+# the man pages (tests/test_man_pages.py).
 APT_PACKAGES := build-essential dpkg-dev devscripts quilt cmake ninja-build libgtest-dev \
-                python3 python3-venv povray povray-includes
+                python3 python3-venv povray povray-includes time groff-base
 
 # POV-Ray's configure: --disable-optimiz stops it adding fast-math and -march=native flags.
 # The shading library reaches the fork through CPPFLAGS/LDFLAGS/LIBS, not by copying sources.
@@ -68,7 +70,14 @@ help: ## List the targets
 # ---------------------------------------------------------------- dependencies
 # Installs what is missing through apt (needs root once); does nothing when all is there.
 deps: $(STAMPS)/deps ## Install build dependencies through apt (as root), once
-$(STAMPS)/deps: mk/deps.sh
+# The package list, in a file that changes only when the list does: adding a package runs
+# mk/deps.sh again (and only then).
+APT_LIST_FILE := $(BUILD)/apt-packages
+$(APT_LIST_FILE): FORCE
+	@mkdir -p $(@D)
+	@printf '%s\n' $(APT_PACKAGES) > $@.tmp
+	@if cmp -s $@.tmp $@; then rm $@.tmp; else mv $@.tmp $@; fi
+$(STAMPS)/deps: mk/deps.sh $(APT_LIST_FILE)
 	@mkdir -p $(@D)
 	bash mk/deps.sh $(APT_PACKAGES)
 	@touch $@

@@ -9,6 +9,7 @@
 #   PREFIX/share/povray-brdf/include      POV-Ray 3.7.0.10's standard include files and ours
 #   PREFIX/share/povray-brdf/brdf_data    the ready tables of `make brdf-data`
 #   PREFIX/share/povray-brdf/doc          README, docs/, shading/MODELS.md, DIPOLE.md, brdf_data/README.md
+#   PREFIX/share/man/man1                 povray-brdf.1.gz, brdftool.1.gz (from docs/man/)
 #   PREFIX/share/povray-brdf/install-manifest.txt   every installed file (`make uninstall`)
 #
 # POV-Ray compiles its configuration directory into the binary (POVCONFDIR, from configure's
@@ -104,6 +105,10 @@ for f in "${tables[@]}"; do put 644 "$f" "$share/brdf_data/$(basename "$f")"; do
 for f in README.md shading/MODELS.md shading/DIPOLE.md brdf_data/README.md docs/*.md; do
   [ -f "$top/$f" ] && put 644 "$top/$f" "$share/doc/$f"   # relative links between them keep working
 done
+for f in "$top"/docs/man/*.1; do
+  gzip -9nc "$f" > "$tmp/$(basename "$f").gz"
+  put 644 "$tmp/$(basename "$f").gz" "$prefix/share/man/man1/$(basename "$f").gz"
+done
 for f in povray.conf povray.ini; do
   sed -e "s|@ETCDIR@|$etc|g" -e "s|@SHAREDIR@|$share|g" -e "s|@PREFIX@|$prefix|g" \
       "$top/conf/installed/$f.in" > "$tmp/$f"
@@ -115,3 +120,4 @@ install -D -m 644 "$tmp/manifest" "$D$share/install-manifest.txt"
 
 echo "install: ${#manifest[@]} files under $D$prefix"
 echo "install: $D$bindir/povray-brdf reads $etc/povray.{conf,ini}; tables in $share/brdf_data, includes in $share/include"
+echo "install: man povray-brdf, man brdftool (in $prefix/share/man/man1; add $prefix/share/man to MANPATH if man does not find them)"

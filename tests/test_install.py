@@ -63,8 +63,13 @@ def test_layout(prefix):
     for f in ("bin/povray-brdf", "bin/brdftool", "etc/povray-brdf/povray.conf", "etc/povray-brdf/povray.ini",
               "share/povray-brdf/include/brdf_metals.inc", "share/povray-brdf/include/colors.inc",
               "share/povray-brdf/brdf_data/gold.brdf", "share/povray-brdf/doc/README.md",
-              "share/povray-brdf/doc/shading/MODELS.md", "share/povray-brdf/doc/docs/fitting.md"):
+              "share/povray-brdf/doc/shading/MODELS.md", "share/povray-brdf/doc/docs/fitting.md",
+              "share/man/man1/povray-brdf.1.gz", "share/man/man1/brdftool.1.gz"):
         assert (prefix / f).is_file(), f
+    for page in ("povray-brdf", "brdftool"):  # `man` finds them under PREFIX/share/man
+        shown = subprocess.run(["man", "-M", str(prefix / "share" / "man"), page], capture_output=True, text=True,
+                               env={"MANWIDTH": "80", "PATH": "/usr/bin:/bin", "MAN_DISABLE_SECCOMP": "1"})
+        assert shown.returncode == 0 and shown.stdout.startswith(page.upper()), shown.stderr
     assert not (prefix / "bin" / "povray").exists()  # stock's name stays stock's
     assert f"Library_Path={share}/brdf_data" in (etc / "povray.ini").read_text()
     assert f"read* = {share}/include" in (etc / "povray.conf").read_text()

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -79,9 +82,32 @@ def test_local_study_writes_sheet_page_and_numbers(fork, small_study, tmp_path):
         assert c["trace_seconds"] is not None and c["peak_memory_bytes"] > 1e6, c
     assert (out / "sheet.png").stat().st_size > 5000
     page = (out / "index.html").read_text()
-    assert "lambert 10 deg table" in page and "trace" in page and " MB" in page
+    assert "lambert 10 deg table" in page and "trace" in page and " MiB" in page
     assert len(list((out / "plots").glob("*.png"))) == 1  # the one table material
     assert study.main([str(small_study.path), "--out", str(tmp_path / "cli"), "-q"]) == 0
+
+
+def test_memory_is_the_renderers_own_within_ten_percent_of_gnu_time(fork, tmp_path):
+    """The study's memory column for one cell against GNU ``time -v``'s maximum resident size of
+    the same command in the same folder. This process holds 256 MB more than any render, so
+    a measure that still saw the harness (``ru_maxrss`` of a child forked from it) would be
+    several times too large."""
+    gnu_time = Path("/usr/bin/time")
+    if not gnu_time.is_file():
+        pytest.fail("GNU time is missing: `make deps` installs the `time` package")
+    ballast = np.ones(32 * 2**20)  # 256 MB, touched
+    st = study.load_study(REPO_ROOT / "studies" / "example.toml")
+    mat = next(m for m in st.materials if m.table is not None)
+    job = tmp_path / "job"
+    res = runner.render(study.scene_text(st, mat, "sphere", "key"), fork, width=st.width, height=st.height,
+                        float_exr=True, threads=1, files={k: str(v) for k, v in mat.files.items()}, workdir=job)
+    p = subprocess.run([str(gnu_time), "-v", *res.command], cwd=job, env=runner.clean_env(job / "home"),
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr[-2000:]
+    gnu = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) * 1024
+    ours = res.peak_memory_bytes
+    assert abs(ours / gnu - 1) < 0.10, (ours, gnu)
+    assert ballast.nbytes > 8 * gnu  # the harness is much bigger than the render it measures
 
 
 def test_dask_scheduler_backend_matches_local(fork, small_study, tmp_path):

@@ -1,11 +1,20 @@
-"""Where things are: the repository root, the two POV-Ray binaries, the include path.
+"""Where things are: the repository root, the two POV-Ray binaries, the include path, and
+where the harness keeps what it makes.
 
 Binary discovery is environment-first so CI and people can point the harness elsewhere:
 
-* ``POVRAY_BRDF``  — the fork (default ``<repo>/build/bin/povray-brdf``);
+* ``POVRAY_BRDF``  — the fork (default ``<repo>/build/bin/povray-brdf`` in a checkout,
+  else ``povray-brdf`` on ``PATH``, where ``make install`` puts it);
+* ``BRDFTOOL``     — brdftool (default ``<repo>/build/shading/brdftool``, else ``PATH``);
 * ``POVRAY_STOCK`` — Debian's stock 3.7.0.10 (default ``/usr/bin/povray``);
 * ``POVRAY_INCLUDE`` — extra include directories (``os.pathsep``-separated), searched
   before the standard ``/usr/share/povray-3.7/include``.
+
+The harness runs from a checkout (``make venv`` installs it editable) or installed on its
+own (``pip install .``: the ``brdf-*`` console scripts). Outside a checkout there is no
+``build/`` or ``out/``: tables and costs it makes go to the cache folder
+(:func:`cache_dir`), pages to ``./out`` (:func:`out_dir`), and the ready tables are the
+installed fork's (:func:`ready_tables_dir`).
 """
 
 from __future__ import annotations
@@ -61,11 +70,15 @@ def _check_executable(path: Path, what: str, env: str, hint: str) -> Path:
 
 
 def fork_binary() -> Binary:
-    """Locate the fork ``povray-brdf``; raise :class:`BinaryNotFound` if it is not built."""
-    path = Path(os.environ.get("POVRAY_BRDF") or FORK_DEFAULT)
-    _check_executable(path, "fork binary povray-brdf", "POVRAY_BRDF",
-                      "Build it first (see the README / `make help`).")
-    return Binary(path, "fork")
+    """Locate the fork ``povray-brdf``: ``POVRAY_BRDF``, else the checkout's build, else
+    ``PATH``; raise :class:`BinaryNotFound` (saying how to fix it) if there is none."""
+    env = os.environ.get("POVRAY_BRDF")
+    if env or in_checkout():
+        path = Path(env or FORK_DEFAULT)
+        _check_executable(path, "fork binary povray-brdf", "POVRAY_BRDF",
+                          "Build it first (see the README / `make help`).")
+        return Binary(path, "fork")
+    return Binary(_on_path("povray-brdf", "POVRAY_BRDF"), "fork")
 
 
 def stock_binary() -> Binary:
@@ -102,9 +115,59 @@ def resolve_binary(which: Union[str, os.PathLike, Binary]) -> Binary:
 
 
 def brdftool() -> Path:
-    """The shading library's ``brdftool`` (built by ``make``; ``BRDFTOOL`` overrides)."""
-    path = Path(os.environ.get("BRDFTOOL") or REPO_ROOT / "build" / "shading" / "brdftool")
-    return _check_executable(path, "brdftool", "BRDFTOOL", "Build it first with `make shading`.")
+    """The shading library's ``brdftool``: ``BRDFTOOL``, else the checkout's build, else ``PATH``."""
+    env = os.environ.get("BRDFTOOL")
+    if env:
+        return _check_executable(Path(env), "brdftool", "BRDFTOOL", "")
+    if in_checkout():
+        return _check_executable(REPO_ROOT / "build" / "shading" / "brdftool", "brdftool", "BRDFTOOL",
+                                 "Build it first with `make shading`.")
+    return _on_path("brdftool", "BRDFTOOL")
+
+
+def in_checkout() -> bool:
+    """True when this harness is a povray-brdf checkout's (the tree itself or an editable
+    install of it), False when it was installed on its own (``pip install``)."""
+    return (REPO_ROOT / "Makefile").is_file() and (REPO_ROOT / "patches" / "series").is_file()
+
+
+def _on_path(name: str, env: str) -> Path:
+    found = shutil.which(name)
+    if found is None:
+        raise BinaryNotFound(
+            f"{name} not found: this harness is installed outside a povray-brdf checkout, and {name} is neither "
+            f"named by ${env} nor on PATH. Install the fork (`make install PREFIX=/opt/povray-brdf` in a checkout, "
+            f"then add /opt/povray-brdf/bin to PATH) or set {env}=/path/to/{name}.")
+    return Path(found)
+
+
+def cache_dir(*parts: str) -> Path:
+    """Where the harness keeps tables and measurements it makes: ``build/`` of a checkout,
+    else ``$POVRAY_BRDF_CACHE``, else ``$XDG_CACHE_HOME/povray-brdf`` (``~/.cache/povray-brdf``)."""
+    if in_checkout():
+        base = REPO_ROOT / "build"
+    elif os.environ.get("POVRAY_BRDF_CACHE"):
+        base = Path(os.environ["POVRAY_BRDF_CACHE"])
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "povray-brdf"
+    return base.joinpath(*parts)
+
+
+def out_dir(*parts: str) -> Path:
+    """Default folder of pages and images: ``out/`` of a checkout, else ``./out``."""
+    return (REPO_ROOT / "out" if in_checkout() else Path.cwd() / "out").joinpath(*parts)
+
+
+def ready_tables_dir() -> Path:
+    """The ready tables (``make brdf-data``): ``build/brdf_data`` of a checkout, else the
+    installed fork's ``PREFIX/share/povray-brdf/brdf_data`` (beside its ``bin/``)."""
+    if in_checkout():
+        return REPO_ROOT / "build" / "brdf_data"
+    try:
+        fork = fork_binary().path.resolve()
+    except BinaryNotFound:
+        return Path("/usr/local/share/povray-brdf/brdf_data")
+    return fork.parent.parent / "share" / "povray-brdf" / "brdf_data"
 
 
 def include_dirs() -> list[Path]:

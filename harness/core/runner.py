@@ -24,7 +24,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -37,6 +36,7 @@ import numpy as np
 
 from harness.core import exr
 from harness.core.paths import Binary, include_dirs, resolve_binary
+from harness.core.progress import bar as progress_bar
 from harness.core.povwriter import scene_to_pov
 
 SCENE_NAME = "scene.pov"
@@ -67,7 +67,9 @@ class RenderResult:
     ``image`` is float32 (H, W, 3), linear, row 0 at the top; ``exr_dtype`` says how the file
     stored it (``float16`` for stock). Times are POV's own, in seconds (None if not printed);
     ``wall_seconds`` includes start-up (~0.6 s). ``peak_memory_bytes`` is POV's "Peak memory
-    used" where it prints one, else the process's peak resident set size (``stats["max_rss_bytes"]``).
+    used" where it prints one, else the renderer's own peak resident set size
+    (``stats["max_rss_bytes"]``: its ``VmHWM``, see :func:`_run_measured`; within 1 % of GNU
+    ``time -v``'s maximum resident size for the same render).
     """
 
     image: np.ndarray
@@ -134,13 +136,25 @@ def parse_stats(stderr: str) -> dict[str, float]:
 
 
 def _message_at(stderr: str, m: re.Match) -> str:
-    """The message starting at match ``m``, with POV's 80-column continuation lines joined."""
-    parts = [m["msg"].strip()]
+    """The message starting at match ``m``, with POV's 80-column continuation lines joined.
+
+    POV indents a continuation line by one space where it broke at a space; where a word
+    reached the 80th column it breaks inside the text, and the next line starts without a
+    space (e.g. ``,`` after a long path): such a line follows a full one (79+ characters).
+    """
+    text = m["msg"].strip()
+    prev = stderr[m.start():m.end()]
     for ln in stderr[m.end():].splitlines()[1:]:
-        if not ln.startswith(" ") or ln.strip().startswith(_END_MARKERS) or not ln.strip():
+        if not ln.strip() or ln.strip().startswith(_END_MARKERS) or _MSG_RE.match(ln):
             break
-        parts.append(ln.strip())
-    return " ".join(parts)
+        if ln.startswith(" "):
+            text += " " + ln.strip()
+        elif len(prev) >= 79:
+            text += ln.rstrip()
+        else:
+            break
+        prev = ln
+    return text
 
 
 def parse_messages(stderr: str) -> list[tuple[str, int, str]]:
@@ -166,7 +180,9 @@ def parse_error(stderr: str) -> tuple[str, Optional[str], Optional[int]]:
 
 # ---------------------------------------------------------------- running
 
-def _clean_env(home: Path) -> dict[str, str]:
+def clean_env(home: Path) -> dict[str, str]:
+    """The environment a render runs in: this one with ``HOME`` = ``home`` (no user conf or
+    INI) and without ``POVINI``/``POVINC``."""
     env = dict(os.environ)
     env["HOME"] = str(home)
     for k in ("POVINI", "POVINC"):
@@ -190,16 +206,40 @@ def _stage(src: Path, dst: Path) -> None:
         shutil.copyfile(src, dst)
 
 
+def _vm_hwm(pid: Union[int, str]) -> Optional[int]:
+    """``VmHWM`` (peak resident set size) of a process in bytes, from ``/proc/PID/status``;
+    None once its memory is gone (it exited) or where there is no /proc."""
+    try:
+        with open(f"/proc/{pid}/status", "rb") as f:
+            for line in f:
+                if line.startswith(b"VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+#: How often :func:`_run_measured` reads the renderer's VmHWM (seconds).
+RSS_POLL_SECONDS = 0.01
+
+
 def _run_measured(cmd: Sequence[str], cwd: Path, env: Mapping[str, str],
                   timeout: Optional[float]) -> tuple[Optional[int], str, str, Optional[int]]:
     """Run ``cmd``; return ``(exit status or None on timeout, stdout, stderr, peak RSS bytes)``.
 
-    ``subprocess.run`` reaps the child without its resource usage, so the child is reaped
-    here with ``os.wait4`` (its ``ru_maxrss``, kB on Linux); the pipes are drained by threads
-    and a timer kills the child at ``timeout``.
+    The peak RSS is the renderer's own. ``ru_maxrss`` of a child started from Python is
+    not: Linux keeps, across ``exec``, the high-water mark of the memory the child had before
+    it (Python's, copied or shared at fork), so a 16 MB render of a 60 MB harness reads 60 MB.
+    ``VmHWM`` in ``/proc/PID/status`` starts afresh at ``exec``; a thread reads it every
+    :data:`RSS_POLL_SECONDS` while the child runs (it is a high-water mark, so only growth in
+    the last interval before exit can be missed). Where the child's ``ru_maxrss`` (from
+    ``os.wait4``) exceeds this process's own peak after the start, it is the renderer's exact
+    peak and is used instead. The pipes are drained by threads; a timer kills the child at
+    ``timeout``.
     """
     proc = subprocess.Popen(cmd, cwd=cwd, env=dict(env), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
+    own_peak = _vm_hwm("self")  # after exec: at least what the child inherited
     chunks: dict[str, bytes] = {}
 
     def drain(name: str, pipe: Any) -> None:
@@ -210,6 +250,18 @@ def _run_measured(cmd: Sequence[str], cwd: Path, env: Mapping[str, str],
                for n, p in (("out", proc.stdout), ("err", proc.stderr))]
     for t in readers:
         t.start()
+    exited = threading.Event()
+    polled = [0]
+
+    def poll() -> None:
+        while not exited.is_set():
+            v = _vm_hwm(proc.pid)
+            if v is not None and v > polled[0]:
+                polled[0] = v
+            exited.wait(RSS_POLL_SECONDS)
+
+    poller = threading.Thread(target=poll, daemon=True)
+    poller.start()
     timed_out = threading.Event()
 
     def kill() -> None:
@@ -225,14 +277,22 @@ def _run_measured(cmd: Sequence[str], cwd: Path, env: Mapping[str, str],
     try:
         _, status, usage = os.wait4(proc.pid, 0)
     finally:
+        exited.set()
         if timer is not None:
             timer.cancel()
+    poller.join()
     proc.returncode = os.waitstatus_to_exitcode(status)  # Popen must not wait for it again
     for t in readers:
         t.join()
     out = chunks.get("out", b"").decode(errors="replace")
     err = chunks.get("err", b"").decode(errors="replace")
-    rss = int(usage.ru_maxrss) * 1024 if usage.ru_maxrss > 0 else None
+    maxrss = int(usage.ru_maxrss) * 1024 if usage.ru_maxrss > 0 else None
+    if maxrss is not None and own_peak is not None and maxrss > own_peak:
+        rss: Optional[int] = maxrss       # above anything inherited: the renderer's own peak
+    elif polled[0] > 0:
+        rss = polled[0]
+    else:
+        rss = maxrss if own_peak is None else None  # no /proc: the old measure
     return (None if timed_out.is_set() else proc.returncode), out, err, rss
 
 
@@ -296,7 +356,7 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
         if out.exists():
             out.unlink()
         t0 = time.perf_counter()
-        returncode, stdout, stderr, max_rss = _run_measured(cmd, job, _clean_env(home), timeout)
+        returncode, stdout, stderr, max_rss = _run_measured(cmd, job, clean_env(home), timeout)
         wall = time.perf_counter() - t0
         stderr = stderr + stdout
         if returncode is None:
@@ -333,49 +393,38 @@ class RenderJob:
     options: dict[str, Any] = field(default_factory=dict)
 
 
-class Progress:
-    """``[render] 3/12 done, 1 failed, 4.2 s`` on stderr, rewritten in place."""
-
-    def __init__(self, total: int, enabled: bool) -> None:
-        self.total, self.done, self.failed, self.enabled = total, 0, 0, enabled
-        self.t0 = time.perf_counter()
-        self.lock = threading.Lock()
-
-    def tick(self, ok: bool) -> None:
-        with self.lock:
-            self.done += 1
-            self.failed += 0 if ok else 1
-            if self.enabled:
-                fail = f", {self.failed} failed" if self.failed else ""
-                end = "\n" if self.done == self.total else ""
-                sys.stderr.write(f"\r[render] {self.done}/{self.total} done{fail}, "
-                                 f"{time.perf_counter() - self.t0:.1f} s{end}")
-                sys.stderr.flush()
-
-
 def render_many(jobs: Iterable[Union[RenderJob, Any]], *, max_workers: Optional[int] = None,
-                progress: bool = True, return_exceptions: bool = False,
+                progress: bool = True, return_exceptions: bool = False, progress_label: str = "render",
                 **common: Any) -> list[Union[RenderResult, Exception]]:
     """Render several jobs concurrently (threads: each job is a POV process); results in order.
 
     ``jobs`` are :class:`RenderJob` or bare scenes; ``common`` keyword arguments apply to all
     (a job's own options win). ``max_workers`` defaults to the CPU count. With
     ``return_exceptions`` a failed job's exception takes its place; otherwise the first
-    failure (in job order) is raised after all jobs finish.
+    failure (in job order) is raised after all jobs finish. ``progress``: a bar with the
+    renders done, failed, elapsed and left on stderr (:mod:`harness.core.progress`), labelled
+    ``progress_label``.
     """
     jl = [j if isinstance(j, RenderJob) else RenderJob(j) for j in jobs]
-    prog = Progress(len(jl), progress and len(jl) > 0)
+    failed = 0
+    lock = threading.Lock()
 
-    def run(job: RenderJob) -> Union[RenderResult, Exception]:
-        try:
-            r: Union[RenderResult, Exception] = render(job.scene, **{**common, **job.options})
-        except Exception as e:  # noqa: BLE001 - handed back or re-raised below
-            r = e
-        prog.tick(not isinstance(r, Exception))
-        return r
+    with progress_bar(len(jl), progress_label, unit="render", enabled=progress) as prog:
+        def run(job: RenderJob) -> Union[RenderResult, Exception]:
+            nonlocal failed
+            try:
+                r: Union[RenderResult, Exception] = render(job.scene, **{**common, **job.options})
+            except Exception as e:  # noqa: BLE001 - handed back or re-raised below
+                r = e
+            with lock:
+                if isinstance(r, Exception):
+                    failed += 1
+                    prog.set_postfix_str(f"{failed} failed", refresh=False)
+                prog.update(1)
+            return r
 
-    with ThreadPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
-        results = list(pool.map(run, jl))
+        with ThreadPoolExecutor(max_workers=max_workers or os.cpu_count() or 1) as pool:
+            results = list(pool.map(run, jl))
     if not return_exceptions:
         for r in results:
             if isinstance(r, Exception):

@@ -1,4 +1,5 @@
-"""BRDF tables for scenes: made with ``brdftool`` once, cached under ``build/brdf_cache``.
+"""BRDF tables for scenes: made with ``brdftool`` once, cached under ``build/brdf_cache``
+(outside a checkout: the cache folder of :func:`harness.core.paths.cache_dir`).
 
     path = tables.tabulated("microfacet d=beckmann m=0.3", step=1.0)
 
@@ -14,9 +15,9 @@ import subprocess
 from pathlib import Path
 from typing import Sequence
 
-from harness.core.paths import REPO_ROOT, brdftool
+from harness.core.paths import brdftool, cache_dir
 
-CACHE_DIR = REPO_ROOT / "build" / "brdf_cache"
+CACHE_DIR = cache_dir("brdf_cache")
 
 
 def cached(args: Sequence[str], stem: str) -> Path:

@@ -35,10 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-try:  # package use (python -m harness.reference.mc_subsurface, tests)
-    from harness.reference import dipole_ref
-except ImportError:  # pragma: no cover - run as a plain script from harness/
-    import dipole_ref  # type: ignore
+from harness.core.progress import bar as progress_bar
+from harness.reference import dipole_ref
 
 __all__ = ["MCResult", "simulate", "default_r_edges", "table", "main"]
 
@@ -105,8 +103,11 @@ def _scatter(ux, uy, uz, g, rng):
 def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
              n_photons: int = 100_000, seed: int = 1, r_edges: np.ndarray | None = None,
              roulette_weight: float = 1e-3, roulette_survival: float = 0.1,
-             max_iterations: int = 10_000_000) -> MCResult:
-    """Simulate `n_photons` photons entering at the origin along the normal; see module doc."""
+             max_iterations: int = 10_000_000, progress: bool = False) -> MCResult:
+    """Simulate `n_photons` photons entering at the origin along the normal; see module doc.
+
+    ``progress``: a bar of the photons finished (absorbed or escaped), with the time left,
+    on stderr (:mod:`harness.core.progress`)."""
     if not (sigma_s >= 0 and sigma_a >= 0 and sigma_s + sigma_a > 0):
         raise ValueError(f"need sigma_s, sigma_a >= 0 and sigma_t > 0, got {sigma_s}, {sigma_a}")
     if not (-1.0 < g < 1.0):
@@ -142,8 +143,10 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
     interactions = 0
 
     it = 0
+    bar = progress_bar(n, "Monte Carlo", unit="photon", enabled=progress)
     while ids.size and it < max_iterations:
         it += 1
+        bar.update(n - ids.size - bar.n)
         s = -np.log1p(-rng.random(ids.size)) / sigma_t  # free path; 1 - U in (0, 1]
         up = uz < 0.0
         with np.errstate(divide="ignore"):
@@ -200,6 +203,8 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
             ids, x, y, z, ux, uy, uz, w, order = (
                 a[alive] for a in (ids, x, y, z, ux, uy, uz, w, order))
 
+    bar.update(n - ids.size - bar.n)
+    bar.close()
     per_total = per_single + per_multi
     sq = math.sqrt(n)
     area = math.pi * (r_edges[1:] ** 2 - r_edges[:-1] ** 2)
@@ -218,6 +223,21 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
     )
 
 
+def write_profile_csv(res: MCResult, path, units: str = "mm") -> None:
+    """The radial profile of ``res`` as a CSV file that ``brdf-scatter-fit`` reads: a comment
+    saying what was simulated, a header with units, then one annulus per line
+    (``r_inner, r_outer, Rd, Rd_err``). Lengths are in ``units`` (the unit the coefficients
+    were given in: sigma in 1/``units``), Rd per unit entering power and area."""
+    lines = [f"# Monte Carlo radial profile (harness.reference.mc_subsurface): sigma_s = {res.sigma_s:g} 1/{units}, "
+             f"sigma_a = {res.sigma_a:g} 1/{units}, g = {res.g:g}, eta = {res.eta:g}, {res.n_photons} photons",
+             "# Rd: exitance per unit entering power and area, mean over each annulus; Rd_err: one standard error",
+             f"r_inner [{units}], r_outer [{units}], Rd [1/{units}^2], Rd_err [1/{units}^2]"]
+    for lo, hi, v, e in zip(res.r_edges[:-1], res.r_edges[1:], res.rd_r, res.rd_r_err):
+        lines.append(f"{lo:.9g}, {hi:.9g}, {v:.9g}, {e:.9g}")
+    with open(path, "w") as f:
+        f.write("\n".join(lines) + "\n")
+
+
 # ---------------------------------------------------------------------------------------------
 # Dipole vs MC table
 
@@ -231,8 +251,9 @@ def _bin_mean(res: MCResult, r: float):
 
 
 def table(albedos=(0.5, 0.8, 0.9, 0.95, 0.99, 0.999), etas=(1.0, 1.3, 1.5), g: float = 0.0,
-          n_photons: int = 100_000, seed: int = 1, out=sys.stdout) -> list[dict]:
-    """Print dipole vs MC totals and radial profiles; sigma_t' = 1 (lengths in reduced mfp)."""
+          n_photons: int = 100_000, seed: int = 1, out=sys.stdout, progress: bool = False) -> list[dict]:
+    """Print dipole vs MC totals and radial profiles; sigma_t' = 1 (lengths in reduced mfp).
+    ``progress``: a bar of the rows (media) and one of each row's photons on stderr."""
     rows = []
     hdr = ("alpha'  eta  | Rd dipole  Rd MC (+-1se)      MC single MC multi | dip/MC-1 "
            "| exact(eta=1) | Rd(r) dipole/MC at r = " + ", ".join(f"{r:g}" for r in TABLE_R)
@@ -240,11 +261,13 @@ def table(albedos=(0.5, 0.8, 0.9, 0.95, 0.99, 0.999), etas=(1.0, 1.3, 1.5), g: f
     print(hdr, file=out)
     print("-" * len(hdr), file=out)
     t_all = time.perf_counter()
+    rows_bar = progress_bar(len(etas) * len(albedos), "media", unit="medium", enabled=progress)
     for eta in etas:
         for a in albedos:
             ssp, sa = a, 1.0 - a           # sigma_t' = 1
             ss = ssp / (1.0 - g)
-            res = simulate(ss, sa, g=g, eta=eta, n_photons=n_photons, seed=seed)
+            res = simulate(ss, sa, g=g, eta=eta, n_photons=n_photons, seed=seed, progress=progress)
+            rows_bar.update(1)
             dip = dipole_ref.Dipole(ssp, sa, eta)
             rd = dip.rd_total()
             exact = dipole_ref.plane_albedo_isotropic(a) if (eta == 1.0 and g == 0.0) else float("nan")
@@ -260,6 +283,7 @@ def table(albedos=(0.5, 0.8, 0.9, 0.95, 0.99, 0.999), etas=(1.0, 1.3, 1.5), g: f
             print(f"{a:6.3f} {eta:5.2f} | {rd:9.4f}  {res.total:.4f} (+-{res.total_err:.4f})  "
                   f"{res.single:9.4f} {res.multiple:8.4f} | {rd / res.total - 1.0:+8.3f} | {ex} | "
                   + "  ".join(f"{q:5.2f}" for q in ratios) + f" | {res.seconds:5.1f}", file=out)
+    rows_bar.close()
     print(f"total {time.perf_counter() - t_all:.1f} s, {n_photons} photons per row, seed {seed}, "
           f"g = {g}, numpy {np.__version__}", file=out)
     return rows
@@ -274,11 +298,30 @@ def main(argv=None) -> int:
     ap.add_argument("--albedos", type=lambda s: [float(v) for v in s.split(",")],
                     default=[0.5, 0.8, 0.9, 0.95, 0.99, 0.999])
     ap.add_argument("--etas", type=lambda s: [float(v) for v in s.split(",")], default=[1.0, 1.3, 1.5])
+    ap.add_argument("--profile", nargs=2, type=float, metavar=("SIGMA_S_PRIME", "SIGMA_A"),
+                    help="simulate one medium (coefficients in 1/UNITS; sigma_s = sigma_s' / (1 - g)) and write its "
+                         "radial profile to -o as CSV (what brdf-scatter-fit reads)")
+    ap.add_argument("--eta", type=float, default=1.3, help="relative index of --profile (default 1.3)")
+    ap.add_argument("--units", default="mm", help="length unit of --profile (default mm)")
+    ap.add_argument("-o", "--output", help="the CSV file of --profile")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress bars on stderr")
     args = ap.parse_args(argv)
+    if args.profile:
+        if not args.output:
+            ap.error("--profile needs -o PROFILE.csv")
+        ssp, sa = args.profile
+        st = ssp + sa
+        edges = np.concatenate([[0.0], np.geomspace(0.05, 60.0, 51)]) / st
+        res = simulate(ssp / (1.0 - args.g), sa, g=args.g, eta=args.eta, n_photons=args.photons, seed=args.seed,
+                       r_edges=edges, progress=not args.quiet)
+        write_profile_csv(res, args.output, args.units)
+        print(f"{args.output}: {edges.size - 1} annuli 0 .. {edges[-1]:.4g} {args.units}, Rd = {res.total:.4f} "
+              f"+- {res.total_err:.4f} ({res.n_photons} photons, {res.seconds:.1f} s)")
+        return 0
     if not args.table:
         ap.print_help()
         return 2
-    table(args.albedos, args.etas, g=args.g, n_photons=args.photons, seed=args.seed)
+    table(args.albedos, args.etas, g=args.g, n_photons=args.photons, seed=args.seed, progress=not args.quiet)
     return 0
 
 

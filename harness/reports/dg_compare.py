@@ -29,7 +29,7 @@ from harness.core import plotting, runner
 from harness.core.compare import rel_rmse
 from harness.core.exr import to_display
 from harness.reference.expect import expected_image, surface_samples
-from harness.core.paths import REPO_ROOT
+from harness.core.paths import out_dir
 from harness.core.scenes import DistantLight, SphereScene
 
 DS = ("blinn", "gaussian", "tr", "beckmann")
@@ -99,7 +99,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.reports.dg_compare", description=__doc__.split("\n\n")[0])
     ap.add_argument("--m", type=float, default=0.3, help="Beckmann-equivalent roughness (default 0.3)")
     ap.add_argument("--size", type=int, default=160, help="pixels per sphere (default 160)")
-    ap.add_argument("--out", type=Path, default=REPO_ROOT / "out" / "dg", help="output folder (default out/dg)")
+    ap.add_argument("--out", type=Path, default=out_dir("dg"), help="output folder (default out/dg)")
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     images = render_all(args.m, args.size)

@@ -107,8 +107,9 @@ def table_lookup(f: np.ndarray, theta_i: float, theta_r: float, phi: float) -> n
     return np.asarray(out)
 
 
-def measure(grid: Grid = QUICK, workers: int = 2) -> list[Point]:
-    """Render every geometry of ``grid`` (fork, float EXR, 2 x 2 pixels) and recover f."""
+def measure(grid: Grid = QUICK, workers: int = 2, progress: bool = False) -> list[Point]:
+    """Render every geometry of ``grid`` (fork, float EXR, 2 x 2 pixels) and recover f
+    (``progress``: a bar of the renders on stderr)."""
     path = table_path()
     f, _ = brdf_io.read_brdf(path)
     model = models.parse(SPEC)
@@ -117,7 +118,7 @@ def measure(grid: Grid = QUICK, workers: int = 2) -> list[Point]:
                               finish={"brdf_table": {"file": "t.brdf"}}, width=2, height=2)
               for ti, tr, phi, _ in geos]
     results = runner.render_many(scenes, binary="fork", float_exr=True, files={"t.brdf": path},
-                                 max_workers=workers, progress=False)
+                                 max_workers=workers, progress=progress, progress_label="gonio")
     points = []
     for (ti, tr, phi, on), s, res in zip(geos, scenes, results):
         if not np.all(res.image == res.image[0, 0]):

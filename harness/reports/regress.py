@@ -45,12 +45,12 @@ import numpy as np
 
 from harness.core import compare as cmp
 from harness.core import exr, page, runner, tables
-from harness.core.paths import (REPO_ROOT, Binary, BinaryNotFound, fork_binary, git_commit, resolve_binary,
-                                stock_binary)
+from harness.core.paths import (REPO_ROOT, Binary, BinaryNotFound, fork_binary, git_commit, out_dir,
+                                ready_tables_dir, resolve_binary, stock_binary)
 
 SCENES_DIR = REPO_ROOT / "scenes" / "regress"
-OUT_DIR = REPO_ROOT / "out" / "regress"
-READY_TABLES = REPO_ROOT / "build" / "brdf_data"
+OUT_DIR = out_dir("regress")
+READY_TABLES = ready_tables_dir()
 
 #: Tolerances of a scene whose golden/NAME.toml does not set them (see DEFAULT_REASON).
 DEFAULT_TOLERANCE: dict[str, float] = {"rel_rmse": 1.0e-3, "half_ulps": 1.0, "stock_half_ulps": 1.0}
@@ -90,6 +90,9 @@ class Tolerance:
 def load_scenes(scenes_dir: Path) -> list[Scene]:
     """The scenes of ``scenes_dir/regress.toml``, in file order."""
     manifest = scenes_dir / "regress.toml"
+    if not manifest.is_file():
+        raise FileNotFoundError(f"{manifest}: no regression manifest here (the scenes are scenes/regress/ of a "
+                                "povray-brdf checkout; give --scenes-dir)")
     data = tomllib.loads(manifest.read_text())
     out = []
     for name, s in data.get("scene", {}).items():
@@ -257,7 +260,8 @@ def run(scenes_dir: Path = SCENES_DIR, out_dir: Path = OUT_DIR, *, bless: bool =
             jobs_list.append(runner.RenderJob(s.pov.read_text(), dict(width=s.width, height=s.height,
                                                                       files=scene_files(s), binary=stock)))
     t0 = time.perf_counter()
-    results = runner.render_many(jobs_list, max_workers=jobs, progress=progress, return_exceptions=True)
+    results = runner.render_many(jobs_list, max_workers=jobs, progress=progress, return_exceptions=True,
+                                 progress_label="regress")
     wall = time.perf_counter() - t0
 
     out_dir.mkdir(parents=True, exist_ok=True)

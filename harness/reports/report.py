@@ -45,6 +45,8 @@ import numpy as np
 from harness.core import plotting
 from harness.core.page import Section, write_page
 from harness.core.paths import git_commit
+from harness.core.progress import bar as progress_bar
+from harness.core.progress import write as progress_write
 
 # ---------------------------------------------------------------- the finish report
 
@@ -69,6 +71,7 @@ class Settings:
     gonio_grid: str = "full"
     timing: bool = True
     workers: int = 2                 # concurrent error renders (timing always runs alone)
+    progress: bool = True            # a bar per part on stderr (harness.core.progress); -q: off
 
 
 FULL = Settings()
@@ -124,12 +127,19 @@ def _error_map(*args, **kw) -> Path:
         return error_map_png(*args, **kw)
 
 
-def _parallel(fn: Callable, items: Sequence, workers: int) -> list:
-    """``[fn(x) for x in items]``, ``workers`` at a time (threads: each render is a process)."""
-    if workers <= 1 or len(items) <= 1:
-        return [fn(x) for x in items]
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(fn, items))
+def run_parallel(fn: Callable, items: Sequence, workers: int, label: str = "", unit: str = "item",
+              progress: bool = False) -> list:
+    """``[fn(x) for x in items]``, ``workers`` at a time (threads: each render is a process),
+    with a progress bar ``label`` (items done, elapsed, left) when ``progress``."""
+    with progress_bar(len(items), label, unit=unit, enabled=progress) as bar:
+        def one(x):
+            r = fn(x)
+            bar.update(1)
+            return r
+        if workers <= 1 or len(items) <= 1:
+            return [one(x) for x in items]
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            return list(pool.map(one, items))
 
 
 # ---------------------------------------------------------------- timing
@@ -147,7 +157,8 @@ def _trace_cpu(side, row) -> float:
     return float(t)
 
 
-def time_rows(jobs: Sequence[tuple[dict, Any]], rounds: int, log: Callable[[str], None]) -> None:
+def time_rows(jobs: Sequence[tuple[dict, Any]], rounds: int, log: Callable[[str], None],
+              progress: bool = False) -> None:
     """Trace-time ratios for ``(entry, harness.reports.bench.Row)`` pairs, written into the entries.
 
     Rows with the same baseline (binary, scene, size) share it: after a warm-up render of the
@@ -161,11 +172,23 @@ def time_rows(jobs: Sequence[tuple[dict, Any]], rounds: int, log: Callable[[str]
     for e, row in jobs:
         key = (row.baseline.binary, row.baseline.scene, row.width, row.height)
         groups.setdefault(key, []).append((e, row))
+    renders = sum(3 + max(1, rounds) * (len(m) + 1) for m in groups.values())
+    with progress_bar(renders, "report: timing", unit="render", enabled=progress) as bar:
+        _time_groups(groups, rounds, log, bar)
+
+
+def _time_groups(groups: dict[tuple, list], rounds: int, log: Callable[[str], None], bar: Any) -> None:
+    """:func:`time_rows` for rows grouped by baseline; ``bar`` counts the renders."""
+    def timed(side, row) -> float:
+        t = _trace_cpu(side, row)
+        bar.update(1)
+        return t
+
     for members in groups.values():
         base_row = members[0][1]
-        _trace_cpu(base_row.baseline, base_row)  # warm-up of both binaries
-        _trace_cpu(members[0][1].candidate, members[0][1])
-        base = [_trace_cpu(base_row.baseline, base_row)]
+        timed(base_row.baseline, base_row)  # warm-up of both binaries
+        timed(members[0][1].candidate, members[0][1])
+        base = [timed(base_row.baseline, base_row)]
         times: dict[int, list[float]] = {i: [] for i in range(len(members))}
         ratios: dict[int, list[float]] = {i: [] for i in range(len(members))}
         for r in range(max(1, rounds)):
@@ -174,8 +197,8 @@ def time_rows(jobs: Sequence[tuple[dict, Any]], rounds: int, log: Callable[[str]
                 order.reverse()
             got = {}
             for i in order:
-                got[i] = _trace_cpu(members[i][1].candidate, members[i][1])
-            base.append(_trace_cpu(base_row.baseline, base_row))
+                got[i] = timed(members[i][1].candidate, members[i][1])
+            base.append(timed(base_row.baseline, base_row))
             ref = 0.5 * (base[-2] + base[-1])
             for i, t in got.items():
                 times[i].append(t)
@@ -207,7 +230,7 @@ def model_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
              "ratio": None}
         row = model_bench.cost_row(spec)
         return e, dataclasses.replace(row, width=st.time_size[0], height=st.time_size[1])
-    return _parallel(one, list(enumerate(model_bench.MODELS)), st.workers)
+    return run_parallel(one, list(enumerate(model_bench.MODELS)), st.workers, "report: models", "model", st.progress)
 
 
 def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[tuple[dict, Any]]:
@@ -242,7 +265,8 @@ def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
             log(f"table {e['label']}: rel-RMSE {r['rel_rmse']:.1e}")
             out.append((e, row))
         return out
-    return [x for chunk in _parallel(one, list(enumerate(table_error.MATERIALS.items())), st.workers) for x in chunk]
+    return [x for chunk in run_parallel(one, list(enumerate(table_error.MATERIALS.items())), st.workers,
+                                     "report: tables", "material", st.progress) for x in chunk]
 
 
 def dipole_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[tuple[dict, Any]]:
@@ -278,7 +302,7 @@ def dipole_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list
         row = bench.Row(label, bench.Side("stock", slab_phong), bench.Side(binary, text),
                         width=st.dipole_time_size[0], height=st.dipole_time_size[1])
         return e, row
-    return _parallel(one, list(enumerate(cases)), st.workers)
+    return run_parallel(one, list(enumerate(cases)), st.workers, "report: dipole", "case", st.progress)
 
 
 # ---------------------------------------------------------------- plots
@@ -458,9 +482,10 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
         jobs += dipole_entries(st, maps, log)
     entries = [e for e, _ in jobs]
     if st.timing:
-        time_rows([(e, row) for e, row in jobs if row is not None], st.rounds, log)
-    gonio_points = gonio.measure(gonio.FULL if st.gonio_grid == "full" else gonio.QUICK) if "gonio" in sections else []
-    stab = stability.run(log=log) if "stability" in sections else []
+        time_rows([(e, row) for e, row in jobs if row is not None], st.rounds, log, st.progress)
+    gonio_points = (gonio.measure(gonio.FULL if st.gonio_grid == "full" else gonio.QUICK, progress=st.progress)
+                    if "gonio" in sections else [])
+    stab = stability.run(log=log, progress=st.progress) if "stability" in sections else []
     wall = time.perf_counter() - t0
     load1 = os.getloadavg()[0]
 
@@ -555,16 +580,16 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    from harness.core.paths import REPO_ROOT
+    from harness.core.paths import out_dir
     ap = argparse.ArgumentParser(prog="python -m harness.reports.report",
                                  description="Every finish's error against its expectation and cost against stock "
                                              "phong, as one HTML page (out/report/index.html).")
     ap.add_argument("--quick", action="store_true", help="CI-size renders, one timing pair, quick gonio grid")
-    ap.add_argument("-o", "--out", type=Path, default=REPO_ROOT / "out" / "report", help="output directory")
+    ap.add_argument("-o", "--out", type=Path, default=out_dir("report"), help="output directory (default out/report)")
     ap.add_argument("--only", default=",".join(SECTIONS), help=f"comma-separated parts (default {','.join(SECTIONS)})")
     ap.add_argument("--rounds", type=int, help="timing rounds (default 3, quick 1)")
     ap.add_argument("--no-time", action="store_true", help="errors only, no trace-time ratios")
-    ap.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress bars or log lines on stderr")
     args = ap.parse_args(argv)
     parts = [p.strip() for p in args.only.split(",") if p.strip()]
     bad = [p for p in parts if p not in SECTIONS]
@@ -575,8 +600,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         st = dataclasses.replace(st, rounds=max(1, args.rounds))
     if args.no_time:
         st = dataclasses.replace(st, timing=False)
-    log = (lambda s: None) if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    build(args.out, st, parts, log)
+    if args.quiet:
+        st = dataclasses.replace(st, progress=False)
+    build(args.out, st, parts, (lambda s: None) if args.quiet else progress_write)
     return 0
 
 

@@ -459,14 +459,21 @@ def run_case(key: str) -> CaseResult:
     return r
 
 
-def run(keys: Optional[Sequence[str]] = None, log: Optional[Callable[[str], None]] = None) -> list[CaseResult]:
-    """Every case (or ``keys``), in order: the single source of the stability numbers."""
+def run(keys: Optional[Sequence[str]] = None, log: Optional[Callable[[str], None]] = None,
+        progress: bool = False) -> list[CaseResult]:
+    """Every case (or ``keys``), in order: the single source of the stability numbers
+    (``progress``: a bar of the cases on stderr)."""
+    from harness.core.progress import bar
+
     out = []
-    for k in keys or list(CASES):
-        r = run_case(k)
-        if log:
-            log(f"{k}: {'ok' if r.ok else 'FAIL'} ({r.seconds:.1f} s)")
-        out.append(r)
+    keys = list(keys or CASES)
+    with bar(len(keys), "stability", unit="case", enabled=progress) as b:
+        for k in keys:
+            r = run_case(k)
+            if log:
+                log(f"{k}: {'ok' if r.ok else 'FAIL'} ({r.seconds:.1f} s)")
+            out.append(r)
+            b.update(1)
     return out
 
 

@@ -3,7 +3,8 @@
 A study file (TOML) names materials, shapes and lights; every material is rendered on every
 shape under every light with the fork, and the renders go into a labelled contact sheet
 (``sheet.png`` and ``index.html`` in ``out/study/<study name>/``) with each image's trace time
-and peak memory (POV's own statistics), plus BRDF polar plots (``brdftool plot``) of the
+and the renderer's peak memory (its own peak resident set size, not the harness's:
+:func:`harness.core.runner.render`), plus BRDF polar plots (:mod:`harness.tools.brdfplot`) of the
 table materials. ``studies/example.toml`` documents the format; in short::
 
     title = "..."
@@ -50,11 +51,12 @@ from pathlib import Path
 from typing import Any, Optional, Sequence, Union
 
 from harness.core import exr, page, plotting, povwriter, runner, tables
-from harness.core.paths import REPO_ROOT, BinaryNotFound, fork_binary
+from harness.core.paths import REPO_ROOT, BinaryNotFound, fork_binary, in_checkout, out_dir, ready_tables_dir
+from harness.core.progress import bar as progress_bar
 from harness.tools import brdfplot
 
-READY_TABLES = REPO_ROOT / "build" / "brdf_data"
-OUT_ROOT = REPO_ROOT / "out" / "study"
+READY_TABLES = ready_tables_dir()
+OUT_ROOT = out_dir("study")
 
 #: Shape presets: POV text with MATERIAL where the material goes (about 2 units across,
 #: centred 1 unit above the floor at y = 0).
@@ -272,7 +274,6 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
         raise StudyError("--scheduler needs Dask distributed: .venv/bin/pip install 'dask[distributed]' "
                          f"(the study extra of pyproject.toml); import failed: {e}") from None
     out: list[Union[runner.RenderResult, Exception, None]] = [None] * len(jobs)
-    prog = runner.Progress(len(jobs), progress and len(jobs) > 0)
     try:
         client = Client(scheduler, timeout=f"{connect_timeout}s")
     except (OSError, TimeoutError) as e:
@@ -293,13 +294,17 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
             fut = client.submit(dask_task.render_task, job.scene, {**common, **job.options}, str(fork.path),
                                 pure=False, key=f"povray-brdf-render-{i}-{os.getpid()}-{time.monotonic_ns()}")
             futures[fut] = i
-        for fut in as_completed(futures):
-            i = futures[fut]
-            try:
-                out[i] = fut.result()
-            except Exception as e:  # noqa: BLE001 - a failed render is reported in its cell
-                out[i] = e
-            prog.tick(not isinstance(out[i], Exception))
+        failed = 0
+        with progress_bar(len(jobs), "study (dask)", enabled=progress) as prog:
+            for fut in as_completed(futures):
+                i = futures[fut]
+                try:
+                    out[i] = fut.result()
+                except Exception as e:  # noqa: BLE001 - a failed render is reported in its cell
+                    out[i] = e
+                    failed += 1
+                    prog.set_postfix_str(f"{failed} failed", refresh=False)
+                prog.update(1)
     return out  # type: ignore[return-value]
 
 @dataclass
@@ -324,7 +329,7 @@ def run(study: Study, out_dir: Path, *, jobs: Optional[int] = None, scheduler: O
         results = render_dask(rjobs, scheduler, progress=progress, **common)
     else:
         results = runner.render_many(rjobs, max_workers=jobs, progress=progress, return_exceptions=True,
-                                     binary="fork", **common)
+                                     progress_label="study", binary="fork", **common)
     wall = time.perf_counter() - t0
     img_dir = out_dir / "images"
     img_dir.mkdir(parents=True, exist_ok=True)
@@ -368,7 +373,7 @@ def _cell_caption(c: Cell) -> str:
     r = c.result
     if isinstance(r, runner.RenderResult):
         t = f"{r.trace_seconds:.2f} s" if r.trace_seconds is not None else "? s"
-        mb = f"{r.peak_memory_bytes / 2**20:.0f} MB" if r.peak_memory_bytes else "? MB"
+        mb = f"{r.peak_memory_bytes / 2**20:.1f} MiB" if r.peak_memory_bytes else "? MiB"
         return f"trace {t}, {mb}"
     return "FAILED"
 
@@ -414,8 +419,9 @@ def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], shee
     notes = (f"{len(study.materials)} materials x {len(study.shapes)} shapes x {len(study.lights)} lights = "
              f"{len(cells)} renders at {study.width}x{study.height} (-A, one thread each), "
              f"{summary['wall_seconds']:.1f} s wall, backend: {summary['backend']}; {summary['failed']} failed. "
-             f"Study file: {study.path}. Under each image: POV-Ray's own trace time and the render's peak "
-             "memory (maximum resident set size, harness.core.runner).")
+             f"Study file: {study.path}. Under each image: POV-Ray's own trace time (seconds) and the "
+             "renderer's peak memory (its peak resident set size in MiB, measured for the renderer alone: "
+             "harness.core.runner).")
     rows = []
     for m in study.materials:
         row: dict[str, Any] = {"material": page.Cell(page.join(page.bold(m.name), page.tag("br"), page.small(m.describe),
@@ -439,7 +445,9 @@ def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], shee
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.reports.study", description=__doc__.split("\n\n")[0])
-    ap.add_argument("study", type=Path, nargs="?", default=REPO_ROOT / "studies" / "example.toml")
+    ap.add_argument("study", type=Path, nargs="?",
+                    default=REPO_ROOT / "studies" / "example.toml" if in_checkout() else None,
+                    help="the study file (TOML; default: studies/example.toml of the checkout)")
     ap.add_argument("--out", type=Path, default=None, help="output directory (default out/study/<study name>)")
     ap.add_argument("--jobs", type=int, default=None, help="local renders at a time (default: the CPU count)")
     ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -447,6 +455,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"), help="override the study's size")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     a = ap.parse_args(argv)
+    if a.study is None:
+        ap.error("name a study file (TOML); its format: harness/reports/study.py, studies/example.toml")
     try:
         study = load_study(a.study)
         if a.size:

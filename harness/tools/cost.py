@@ -28,11 +28,13 @@ from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence
 
 from harness.core import runner, tables
-from harness.core.paths import REPO_ROOT
+from harness.core.paths import cache_dir
 from harness.core.scenes import DistantLight, SphereScene
 
-#: Where the measured table is cached (brdftool's default: costs.txt beside build/shading/).
-COSTS_PATH = REPO_ROOT / "build" / "costs.txt"
+#: Where the measured table is cached: build/costs.txt in a checkout (brdftool's default:
+#: costs.txt beside build/shading/); outside one, the cache folder (pass it to
+#: `brdftool recommend --costs` or set BRDF_COSTS).
+COSTS_PATH = cache_dir("costs.txt")
 
 #: One representative spec per family key (a glossy red plastic where the family allows).
 FAMILY_SPECS: Mapping[str, str] = {

@@ -45,6 +45,7 @@ from harness.core.brdf_io import read_brdf, write_brdf
 from harness.reference.expect import surface_samples
 from harness.core.paths import brdftool
 from harness.core.scenes import DistantLight, SphereScene, rgb
+from harness.tools import sphere_photo
 
 
 @dataclass
@@ -57,29 +58,39 @@ class Samples:
     f: np.ndarray
 
 
-def extract_samples(image: np.ndarray, normals: np.ndarray, mask: np.ndarray, light_dir: Sequence[float],
-                    view_dir: Sequence[float], light_colour=1.0, min_cos: float = 0.02) -> Samples:
-    """BRDF samples from one image: ``normals`` (H, W, 3) unit, ``mask`` (H, W) the sphere,
-    ``light_dir``/``view_dir`` unit world vectors towards the light / the camera."""
+def samples_from_pixels(normals: np.ndarray, views: np.ndarray, pixels: np.ndarray, light_dir: Sequence[float],
+                        light_colour=1.0, min_cos: float = 0.02, scale: float = math.pi) -> Samples:
+    """BRDF samples from pixels (N, 3): unit ``normals``, unit ``views`` (towards the camera),
+    ``pixels`` = ``scale`` f cos(theta_i) E (scale pi in POV units, 1 for radiance). Pixels
+    with cos(theta_i) or cos(theta_r) at or below ``min_cos`` are dropped."""
     l = np.asarray(light_dir, dtype=np.float64)
     l = l / np.linalg.norm(l)
-    v = np.asarray(view_dir, dtype=np.float64)
-    v = v / np.linalg.norm(v)
-    n = normals[mask].astype(np.float64)
-    px = image[mask].astype(np.float64)
-    ci, co = n @ l, n @ v
+    n = np.asarray(normals, dtype=np.float64)
+    v = np.asarray(views, dtype=np.float64)
+    px = np.asarray(pixels, dtype=np.float64)
+    ci, co = n @ l, np.einsum("ij,ij->i", n, v)
     keep = (ci > min_cos) & (co > min_cos)
-    n, px, ci, co = n[keep], px[keep], ci[keep], co[keep]
+    n, v, px, ci, co = n[keep], v[keep], px[keep], ci[keep], co[keep]
     lt = l[None, :] - ci[:, None] * n        # projections on the tangent plane
-    vt = v[None, :] - co[:, None] * n
+    vt = v - co[:, None] * n
     ln, vn = np.linalg.norm(lt, axis=1), np.linalg.norm(vt, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         cphi = np.einsum("ij,ij->i", lt, vt) / (ln * vn)
     cphi = np.where((ln > 1e-9) & (vn > 1e-9), cphi, 1.0)  # at a pole phi is undefined: 0
-    e = np.asarray(rgb(light_colour))
-    f = px / (math.pi * ci[:, None] * e[None, :])
+    e = np.asarray(rgb(light_colour) if not isinstance(light_colour, np.ndarray) else light_colour, dtype=np.float64)
+    f = px / (scale * ci[:, None] * e[None, :])
     return Samples(np.degrees(np.arccos(np.clip(ci, -1, 1))), np.degrees(np.arccos(np.clip(co, -1, 1))),
                    np.degrees(np.arccos(np.clip(cphi, -1, 1))), f)
+
+
+def extract_samples(image: np.ndarray, normals: np.ndarray, mask: np.ndarray, light_dir: Sequence[float],
+                    view_dir: Sequence[float], light_colour=1.0, min_cos: float = 0.02) -> Samples:
+    """BRDF samples from one POV-units image: ``normals`` (H, W, 3) unit, ``mask`` (H, W) the
+    sphere, ``light_dir``/``view_dir`` unit world vectors towards the light / the camera."""
+    v = np.asarray(view_dir, dtype=np.float64)
+    v = v / np.linalg.norm(v)
+    n = normals[mask]
+    return samples_from_pixels(n, np.broadcast_to(v, n.shape), image[mask], light_dir, light_colour, min_cos)
 
 
 def concat(samples: Sequence[Samples]) -> Samples:
@@ -239,19 +250,161 @@ def round_trip(known_table: Path, light_thetas: Sequence[float], step: float = 5
 DEFAULT_THETAS = tuple(float(t) for t in range(0, 176, 5))
 
 
+# ---------------------------------------------------------------- photographs
+
+@dataclass
+class PhotoStats:
+    """What one photograph gave: pixels whose centre sees the sphere, and where they went."""
+
+    path: Path
+    on_sphere: int
+    limb: int          # a corner off the sphere
+    masked: int
+    bad: int           # NaN, Inf or negative values
+    grazing: int       # cos(theta_i) or cos(theta_r) <= min_cos (unlit or edge-on)
+    used: int
+
+
+def photo_samples(desc: sphere_photo.Description, photo: sphere_photo.Photo,
+                  min_cos: float = 0.02) -> tuple[Samples, PhotoStats]:
+    """The samples of one photograph described by ``desc`` (see :mod:`harness.tools.sphere_photo`)."""
+    img = sphere_photo.read_image(photo.path)
+    sphere_photo.check_size(desc, photo.path, img)
+    h, w = img.shape[:2]
+    geo = sphere_photo.sphere_geometry(desc, w, h)
+    if geo.covered == 0:
+        raise sphere_photo.PhotoError(
+            f"{photo.path}: the sphere of {desc.path} covers no pixel of this {w}x{h} photograph: check [sphere] "
+            "(centre, radius) and [camera] (position, look, width or fov)")
+    use = geo.inside.copy()
+    limb = geo.covered - int(use.sum())
+    mask = sphere_photo.load_mask(desc, w, h, photo.path)
+    masked = 0
+    if mask is not None:
+        masked = int((use & ~mask).sum())
+        use &= mask
+    finite = np.isfinite(img).all(axis=-1) & (img >= 0).all(axis=-1)
+    bad = int((use & ~finite).sum())
+    use &= finite
+    s = samples_from_pixels(geo.normal[use], geo.view[use], img[use], photo.light.direction,
+                            photo.light.irradiance, min_cos, desc.pixel_scale())
+    stats = PhotoStats(photo.path, geo.covered, limb, masked, bad, int(use.sum()) - len(s.f), len(s.f))
+    return s, stats
+
+
+def _unlit(st: PhotoStats, desc: sphere_photo.Description, min_cos: float) -> str:
+    return (f"{st.path}: no lit pixel: {st.on_sphere} pixels see the sphere, {st.used + st.grazing} of them whole "
+            f"and unmasked, none both lit and seen (cos theta_i and cos theta_r > {min_cos:g}); check [light] "
+            f"direction (towards the light) and [sphere] in {desc.path}")
+
+
+@dataclass
+class PhotoTable:
+    samples: int
+    coverage: float          # fraction of nodes with data (theta_i, theta_r < 90)
+    stats: list[PhotoStats]
+    sparse: Path
+    filled: Path
+
+
+def table_from_photos(desc: sphere_photo.Description, out: Path, step: float = 5.0,
+                      min_cos: float = 0.02) -> PhotoTable:
+    """Samples of every photograph of ``desc`` binned into a ``step`` table: the sparse table
+    (``OUT-sparse.brdf``, no-data where no photograph saw a node) and, holes filled by
+    ``brdftool fill``, ``out``."""
+    out = Path(out)
+    got = [photo_samples(desc, p, min_cos) for p in desc.photos]
+    unlit = [st for _, st in got if st.used == 0]
+    if len(unlit) == len(got):  # one photograph, or all of them: the description is wrong
+        raise sphere_photo.PhotoError("\n".join(_unlit(st, desc, min_cos) for st in unlit))
+    for st in unlit:  # in a set, a photograph lit from behind may see nothing usable
+        print(f"brdf-sphere-sampling: warning: {st.path.name}: no pixel both lit and seen (cos theta_i and "
+              f"cos theta_r > {min_cos:g}): it adds nothing", file=sys.stderr)
+    s = concat([g[0] for g in got])
+    sparse, cov = bin_samples(s, step)
+    n, m = cov.shape[0], cov.shape[2]
+    covered = float((cov > 0)[theta_mask(n, m, 90.0)].mean())
+    names = ", ".join(p.path.name for p in desc.photos)
+    sparse_path = write_brdf(out.with_name(out.stem + "-sparse.brdf"), sparse,
+                             f"sphere photographs {names} ({desc.path.name}): {len(s.f)} samples, step {step:g}, "
+                             f"{int((cov > 0).sum())} nodes covered")
+    fill_table(sparse_path, out)
+    return PhotoTable(len(s.f), covered, [g[1] for g in got], sparse_path, out)
+
+
+def compare_tables(table: Path, sparse: Path, reference: Path, step: float) -> dict[str, float]:
+    """Cos-weighted rel-RMSE of a recovered table against a known one: over the nodes the
+    photographs covered and over every node after filling, for theta < 90 and theta <= 80."""
+    ref = model_nodes(reference, step)
+    sp, _ = read_brdf(sparse)
+    fl, _ = read_brdf(table)
+    sp, fl = sp.astype(np.float64), fl.astype(np.float64)
+    n, m = sp.shape[0], sp.shape[2]
+    covered = np.isfinite(sp).all(axis=-1)
+    b90, b80 = theta_mask(n, m, 90.0), theta_mask(n, m, 80.0)
+    return {"covered": cos_weighted_rel_rmse(np.nan_to_num(sp), ref, covered & b90),
+            "covered_80": cos_weighted_rel_rmse(np.nan_to_num(sp), ref, covered & b80),
+            "filled": cos_weighted_rel_rmse(fl, ref, b90), "filled_80": cos_weighted_rel_rmse(fl, ref, b80)}
+
+
+def _photo_main(args: argparse.Namespace) -> int:
+    if args.output is None:
+        raise sphere_photo.PhotoError("-o OUT.brdf is required: where to write the recovered table")
+    desc = sphere_photo.load_description(args.describe, args.photos)
+    rt = table_from_photos(desc, args.output, args.step, args.min_cos)
+    for st in rt.stats:
+        print(f"{st.path.name}: {st.on_sphere} pixels on the sphere, {st.used} used ({st.limb} on the limb, "
+              f"{st.masked} masked, {st.grazing} unlit or edge-on, {st.bad} not finite or negative)")
+    print(f"samples:  {rt.samples} from {len(rt.stats)} photograph(s)\n"
+          f"coverage: {100 * rt.coverage:.1f} % of the nodes (theta_i, theta_r < 90 deg) at {args.step:g} deg\n"
+          f"sparse:   {rt.sparse} (no-data where no photograph saw the node)\n"
+          f"table:    {rt.filled} (holes filled by brdftool fill; f in 1/sr)")
+    if args.reference:
+        e = compare_tables(rt.filled, rt.sparse, args.reference, args.step)
+        print(f"error against {args.reference} (rel-RMSE of f, cos theta_i weighted):\n"
+              f"                           theta < 90   theta <= 80\n"
+              f"  covered nodes            {e['covered']:9.4f}   {e['covered_80']:9.4f}\n"
+              f"  all nodes after filling  {e['filled']:9.4f}   {e['filled_80']:9.4f}")
+    return 0
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.tools.sphere_sampling", description=__doc__.split("\n\n")[0])
-    src = ap.add_mutually_exclusive_group(required=True)
-    src.add_argument("--table", type=Path, help="known .brdf table to render")
-    src.add_argument("--spec", help="analytic spec, tabulated at 1 deg as the known table")
+    ap = argparse.ArgumentParser(
+        prog="brdf-sphere-sampling", description=__doc__.split("\n\n")[0],
+        epilog="From photographs: brdf-sphere-sampling PHOTO.exr... --describe PHOTO.toml -o TABLE.brdf "
+               "(the description's format: python -m pydoc harness.tools.sphere_photo, docs/fitting.md). "
+               "Round trip of a known table: --table T.brdf or --spec SPEC.")
+    ap.add_argument("photos", nargs="*", type=Path, help="photographs of the sphere (linear EXR), with --describe")
+    ap.add_argument("--describe", type=Path, metavar="TOML",
+                    help="how the photographs were taken: camera, sphere, light, optional mask")
+    ap.add_argument("--reference", type=Path, metavar="KNOWN.brdf",
+                    help="with --describe: also print the recovered table's error against this table")
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument("--table", type=Path, help="round trip: a known .brdf table to render")
+    src.add_argument("--spec", help="round trip: an analytic spec, tabulated at 1 deg as the known table")
     ap.add_argument("--step", type=float, default=5.0, help="recovered table step, degrees (default 5)")
-    ap.add_argument("--size", type=int, default=128, help="image size (default 128)")
+    ap.add_argument("--min-cos", type=float, default=0.02,
+                    help="drop pixels with cos(theta_i) or cos(theta_r) at or below this (default 0.02)")
+    ap.add_argument("--size", type=int, default=128, help="round trip: image size (default 128)")
     ap.add_argument("--thetas", default=",".join(f"{t:g}" for t in DEFAULT_THETAS),
-                    help="light angles from the view axis, degrees (default 0,5,...,175: gaps in this angle leave the grazing mirror region unsampled)")
-    ap.add_argument("-o", "--output", type=Path, help="copy the filled table here")
+                    help="round trip: light angles from the view axis, degrees (default 0,5,...,175: gaps in this "
+                         "angle leave the grazing mirror region unsampled)")
+    ap.add_argument("-o", "--output", type=Path, help="the recovered (filled) table")
     args = ap.parse_args(argv)
+    if args.describe is not None:
+        if args.table or args.spec:
+            ap.error("--describe (photographs) and --table/--spec (round trip) exclude each other")
+        try:
+            return _photo_main(args)
+        except (sphere_photo.PhotoError, RuntimeError) as e:
+            print(f"brdf-sphere-sampling: {e}", file=sys.stderr)
+            return 2
+    if args.photos:
+        ap.error("photographs need --describe PHOTO.toml (how they were taken)")
+    if not (args.table or args.spec):
+        ap.error("give photographs with --describe, or --table/--spec for a round trip")
     known = args.table or tables.tabulated(args.spec, step=1.0)
-    rt = round_trip(known, [float(t) for t in args.thetas.split(",")], args.step, args.size)
+    rt = round_trip(known, [float(t) for t in args.thetas.split(",")], args.step, args.size, min_cos=args.min_cos)
     print(f"known table:   {known}\nsamples:       {rt.samples}\n"
           f"coverage:      {100 * rt.coverage:.1f} % of nodes (theta_i, theta_r < 90)\n"
           f"cos-weighted rel-RMSE     theta < 90   theta <= 80\n"

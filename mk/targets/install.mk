@@ -7,7 +7,7 @@ PREFIX  ?= /usr/local
 DESTDIR ?=
 .PHONY: install uninstall
 
-install: all brdf-data ## Install povray-brdf, brdftool, includes, tables, docs and conf under PREFIX (default /usr/local)
+install: all brdf-data ## Install povray-brdf, brdftool, includes, tables, docs, man pages and conf under PREFIX (default /usr/local)
 	bash mk/install.sh '$(TOP)' '$(PREFIX)' '$(DESTDIR)'
 
 uninstall: ## Remove what `make install PREFIX=...` installed (its install-manifest.txt)

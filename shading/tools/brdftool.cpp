@@ -4,13 +4,16 @@
 // handling and printing. Exit status: 0 ok, 1 failure (bad data, failed check), 2 usage.
 #include <atomic>
 #include <cctype>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
+#include <mutex>
 #include <set>
 #include <sstream>
 #include <string>
@@ -254,8 +257,8 @@ int cmd_resample(Args& a) {
 }
 
 void print_albedo(const BrdfTable& t, const std::vector<double>& thetas) {
-    std::cout << "directional albedo (integral of f cos over the hemisphere"
-              << (t.geometry().channels == 3 ? ", R G B" : "") << "):\n";
+    std::cout << "directional albedo (integral of f cos over the hemisphere: the fraction of light reflected"
+              << (t.geometry().channels == 3 ? "; R G B" : "") << "):\n";
     for (double th : thetas) {
         char buf[32];
         std::snprintf(buf, sizeof buf, "  theta_i=%5.1f: ", th);
@@ -264,6 +267,43 @@ void print_albedo(const BrdfTable& t, const std::vector<double>& thetas) {
 }
 
 const std::vector<double> kAlbedoThetas = {0, 15, 30, 45, 60, 75, 85, 89};
+
+// What `info` says about reciprocity (Helmholtz: f must not change when light and view
+// swap), with the numbers in words. Folded tables carry the error found when they were
+// folded in their description ("reciprocity error max X 1/sr, rel R", build_table's text).
+std::string reciprocity_words(const BrdfTable& t) {
+    // Measured on measured-like tables with 2 % noise (1 deg): rel 0.13 for a Lambert table,
+    // 0.017 for a glossy plastic (the largest value is its peak).
+    const std::string normal =
+        "             Measured data is never exactly reciprocal, and the largest difference is that of\n"
+        "             one pair of cells: noise alone makes it several times the noise of one sample\n"
+        "             (2 % noise: rel about 0.02 on a glossy table, 0.13 on a matte one). Much more, or\n"
+        "             a large rms, points to misaligned angles or a conversion error (see brdf-plot).\n";
+    char buf[512];
+    if (t.geometry().folded) {
+        const std::string& d = t.info().description;
+        double mx = 0, rel = 0;
+        auto at = d.find("reciprocity error max ");
+        if (at != std::string::npos &&
+            std::sscanf(d.c_str() + at, "reciprocity error max %lf 1/sr, rel %lf", &mx, &rel) == 2) {
+            std::snprintf(buf, sizeof buf,
+                          "reciprocity: exact as stored (folded: one value per pair (theta_i, theta_r), theta_i <= theta_r).\n"
+                          "             Before folding, f(theta_i, theta_r, phi) and f(theta_r, theta_i, phi) differed\n"
+                          "             by up to %.4g 1/sr, %.3g %% of the table's largest value (the description's\n"
+                          "             \"rel %.3g\"); the two were averaged.\n",
+                          mx, 100 * rel, rel);
+            return buf + normal;
+        }
+        return "reciprocity: exact as stored (folded: one value per pair (theta_i, theta_r), theta_i <= theta_r).\n";
+    }
+    ReciprocityStats r = reciprocity(t);
+    if (!r.applicable) return "reciprocity: not compared (the theta_i and theta_r grids differ)\n";
+    std::snprintf(buf, sizeof buf,
+                  "reciprocity: f(theta_i, theta_r, phi) and f(theta_r, theta_i, phi) differ by up to %.4g 1/sr,\n"
+                  "             %.3g %% of the table's largest value (rel %.3g); rms %.4g 1/sr.\n",
+                  r.max_abs, 100 * r.max_rel, r.max_rel, r.rms_abs);
+    return buf + normal;
+}
 
 int cmd_info(Args& a) {
     const std::string path = a.pos[0];
@@ -285,7 +325,7 @@ int cmd_info(Args& a) {
     LoadOptions lo;
     lo.nodata = NoDataPolicy::Fill;
     auto t = load_table(bytes.data(), bytes.size(), path, lo);
-    std::cout << "memory:      " << mb(t->bytes_used()) << " when loaded\n";
+    std::cout << "memory:      " << mb(t->bytes_used()) << " when loaded\n" << reciprocity_words(*t);
     print_albedo(*t, kAlbedoThetas);
     return 0;
 }
@@ -375,7 +415,61 @@ struct FamilyFit {
     std::string failure;
 };
 
-// Fits every family (in parallel) and measures each result on the whole grid.
+// Progress of a long job on stderr: "brdftool fit: 12/38 families, 23 s elapsed, about
+// 41 s left", at least once a second while it runs (families take seconds to a minute
+// each, so progress cannot wait for the next one to finish) and once at the end;
+// rewritten in place on a terminal, one line each otherwise (logs, pipes).
+class Progress {
+public:
+    Progress(std::string what, size_t total, bool enabled)
+        : what_(std::move(what)), total_(total), enabled_(enabled), tty_(isatty(2) != 0),
+          t0_(std::chrono::steady_clock::now()) {}
+    void done_one() {
+        {
+            std::lock_guard<std::mutex> lock(m_);
+            ++done_;
+        }
+        cv_.notify_all();
+    }
+    // Prints until every item is done; the caller's workers call done_one().
+    void run() {
+        std::unique_lock<std::mutex> lock(m_);
+        while (done_ < total_) {
+            cv_.wait_for(lock, std::chrono::seconds(1), [&] { return done_ >= total_; });
+            if (done_ < total_) print(done_, false);
+        }
+        print(done_, true);
+    }
+
+private:
+    void print(size_t done, bool last) {
+        if (!enabled_) return;
+        double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+        char buf[256];
+        if (last)
+            std::snprintf(buf, sizeof buf, "%s: %zu/%zu families in %.1f s", what_.c_str(), done, total_, el);
+        else if (done == 0)
+            std::snprintf(buf, sizeof buf, "%s: %zu/%zu families, %.0f s elapsed, time left: after the first family",
+                          what_.c_str(), done, total_, el);
+        else
+            std::snprintf(buf, sizeof buf, "%s: %zu/%zu families, %.0f s elapsed, about %.0f s left", what_.c_str(),
+                          done, total_, el, el / double(done) * double(total_ - done));
+        if (tty_)
+            std::fprintf(stderr, "\r%-78s%s", buf, last ? "\n" : "");
+        else
+            std::fprintf(stderr, "%s\n", buf);
+        std::fflush(stderr);
+    }
+    std::string what_;
+    size_t total_, done_ = 0;
+    bool enabled_, tty_;
+    std::chrono::steady_clock::time_point t0_;
+    std::mutex m_;
+    std::condition_variable cv_;
+};
+
+// Fits every family (in parallel) and measures each result on the whole grid, with
+// progress on stderr unless --quiet.
 std::vector<FamilyFit> fit_all(const TableGrid& grid, const std::vector<std::string>& families, const Args& a) {
     FitSampling sp;
     sp.coarse_step_deg = a.number("--coarse", sp.coarse_step_deg);
@@ -385,15 +479,18 @@ std::vector<FamilyFit> fit_all(const TableGrid& grid, const std::vector<std::str
     fo.irls_rounds = int(a.number("--irls", fo.irls_rounds));
     fo.restarts = int(a.number("--restarts", fo.restarts));
     if (fo.irls_rounds < 1 || fo.restarts < 1) throw UsageError("--irls and --restarts: at least 1");
-    const FitData data = fit_samples(grid, sp);
-    if (!a.has("--quiet"))
-        std::cerr << "brdftool fit: " << data.samples.size() << " samples (" << data.nodata_cells
-                  << " no-data nodes skipped), " << families.size() << " famil" << (families.size() == 1 ? "y" : "ies")
-                  << "\n";
-    std::vector<FamilyFit> out(families.size());
     unsigned hw = std::max(1u, std::thread::hardware_concurrency());
     int nthreads = int(a.number("--threads", double(hw)));
     if (nthreads < 1) throw UsageError("--threads: at least 1");
+    const std::string what = std::string("brdftool ") + a.cmd->name;
+    const bool talk = !a.has("--quiet");
+    const FitData data = fit_samples(grid, sp);
+    if (talk)
+        std::cerr << what << ": " << data.samples.size() << " fit samples (" << data.nodata_cells
+                  << " no-data nodes skipped), " << families.size() << " famil" << (families.size() == 1 ? "y" : "ies")
+                  << " on " << std::min<int>(nthreads, int(families.size())) << " thread(s)\n";
+    std::vector<FamilyFit> out(families.size());
+    Progress progress(what, families.size(), talk);
     std::atomic<size_t> next{0};
     auto work = [&]() {
         for (size_t k; (k = next.fetch_add(1)) < families.size();) {
@@ -404,10 +501,12 @@ std::vector<FamilyFit> fit_all(const TableGrid& grid, const std::vector<std::str
                 out[k].fit.family = families[k];
                 out[k].failure = e.what();
             }
+            progress.done_one();
         }
     };
     std::vector<std::thread> pool;
     for (int t = 0; t < std::min<int>(nthreads, int(families.size())); ++t) pool.emplace_back(work);
+    progress.run();
     for (auto& t : pool) t.join();
     return out;
 }
@@ -416,6 +515,14 @@ std::string fixed(double v, int prec) {
     char b[64];
     std::snprintf(b, sizeof b, "%.*f", prec, v);
     return b;
+}
+
+// "  m                  0.149855 +- 1.1e-05" (one standard error, where estimated)
+std::string param_line(const FitParam& p) {
+    char buf[128];
+    int n = std::snprintf(buf, sizeof buf, "  %-18s %.6g", p.name.c_str(), p.value);
+    if (p.stderr_ > 0 && n > 0 && size_t(n) < sizeof buf) std::snprintf(buf + n, sizeof buf - size_t(n), " +- %.2g", p.stderr_);
+    return buf;
 }
 
 void print_fit(const FamilyFit& f, const TableGrid& grid) {
@@ -431,15 +538,7 @@ void print_fit(const FamilyFit& f, const TableGrid& grid) {
                   static_cast<unsigned long long>(f.error.nodata_cells), r.sample_error);
     std::cout << buf << "\n";
     std::cout << "  diffuse estimate (off-specular median x pi): " << rgb_text(r.kd_estimate, grid.geom.channels) << "\n";
-    for (const FitParam& p : r.params) {
-        std::snprintf(buf, sizeof buf, "  %-18s %.6g", p.name.c_str(), p.value);
-        std::cout << buf;
-        if (p.stderr_ > 0) {
-            std::snprintf(buf, sizeof buf, " +- %.2g", p.stderr_);
-            std::cout << buf;
-        }
-        std::cout << "\n";
-    }
+    for (const FitParam& p : r.params) std::cout << param_line(p) << "\n";
     if (r.energy_clamped) std::cout << "  note: kd + rho_s exceeded 1 and was scaled to 1 (energy conservation)\n";
     std::snprintf(buf, sizeof buf, "  fit: %d model passes, %.2f s", r.evaluations, r.seconds);
     std::cout << buf << "\n";
@@ -455,6 +554,14 @@ std::vector<size_t> by_error(const std::vector<FamilyFit>& fits) {
     return order;
 }
 
+std::string percent(double rel) {
+    char b[32];
+    std::snprintf(b, sizeof b, rel < 0.1 ? "%.1f %%" : "%.0f %%", 100 * rel);
+    return b;
+}
+
+constexpr size_t kShortList = 10;  // families listed without --details
+
 int cmd_fit(Args& a) {
     const std::string path = a.pos[0];
     TableGrid grid = load_table_grid(path);
@@ -468,19 +575,44 @@ int cmd_fit(Args& a) {
                       << fits[k].fit.spec << "\n";
         return 0;
     }
-    for (const FamilyFit& f : fits) print_fit(f, grid);
-    if (fits.size() > 1) {
-        std::cout << "\nsummary (best first):\n";
-        for (size_t k : by_error(fits)) {
-            char buf[160];
-            std::snprintf(buf, sizeof buf, "  %-42s %s", fits[k].fit.family.c_str(),
-                          fits[k].failure.empty() ? fixed(fits[k].error.rel_rmse, 5).c_str() : "failed");
-            std::cout << buf << "\n";
-        }
-    }
     bool any = false;
     for (const FamilyFit& f : fits) any = any || f.failure.empty();
-    return any ? 0 : 1;
+    // One family: its whole block (parameters, error, spec), the finish line last.
+    if (fits.size() == 1) {
+        print_fit(fits[0], grid);
+        return any ? 0 : 1;
+    }
+    // Several: the ranking, then the best one's parameters, its finish line last. Every
+    // family's block only with --details.
+    const bool details = a.has("--details");
+    if (details)
+        for (const FamilyFit& f : fits) print_fit(f, grid);
+    std::cout << (details ? "\n" : "") << "table: " << path << " (" << grid.geom.describe() << ")\n"
+              << "families, best first (error: rel-RMSE of f, cos theta_i weighted; 0.02 = 2 %):\n";
+    std::vector<size_t> order = by_error(fits);
+    size_t shown = 0;
+    for (size_t k : order) {
+        if (!details && shown == kShortList) break;
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "  %-42s %s", fits[k].fit.family.c_str(),
+                      fits[k].failure.empty()
+                          ? (fixed(fits[k].error.rel_rmse, 5) + "  (" + percent(fits[k].error.rel_rmse) + ")").c_str()
+                          : ("failed: " + fits[k].failure).c_str());
+        std::cout << buf << "\n";
+        ++shown;
+    }
+    if (shown < order.size())
+        std::cout << "  ... " << order.size() - shown << " more (--details lists every family with its parameters)\n";
+    if (!any) {
+        std::cout << "no family could be fitted\n";
+        return 1;
+    }
+    const FamilyFit& best = fits[order[0]];
+    std::cout << "\nbest: " << best.fit.family << ", error " << fixed(best.error.rel_rmse, 5) << " ("
+              << percent(best.error.rel_rmse) << ")\n";
+    for (const FitParam& p : best.fit.params) std::cout << param_line(p) << "\n";
+    std::cout << pov_finish_snippet(best.fit.spec) << "\n";
+    return 0;
 }
 
 // Default cost table: $BRDF_COSTS, else costs.txt in the parent of brdftool's directory
@@ -507,7 +639,9 @@ int cmd_recommend(Args& a) {
     if (a.has("--costs") || (!cpath.empty() && std::ifstream(cpath).good())) {
         CostTable loaded = load_costs(cpath);  // an explicit --costs that is missing is an error
         for (auto& e : loaded.entries) costs.entries.push_back(e);  // later (measured) entries win ties
-        costs.source = cpath + " (measured), built-in order for families it lacks";
+        costs.source = cpath + " (measured), the built-in rough order for families it lacks";
+    } else {
+        costs.source = "the built-in rough order (no measured costs: `brdf-cost` writes build/costs.txt)";
     }
     TableGrid grid = load_table_grid(path);
     std::vector<std::string> families = expand_families(a.str("--model", "all"));
@@ -538,29 +672,43 @@ int cmd_recommend(Args& a) {
         return 0;
     }
     std::cout << "table: " << path << " (" << grid.geom.describe() << ")\n"
-              << "costs: " << costs.source << "\n"
-              << "tolerance: rel-RMSE (cos theta_i weighted) <= " << tol << "\n\n";
+              << "cost: trace time relative to stock POV-Ray's phong highlight on the same scene (1.00 = as fast),\n"
+              << "      from " << costs.source << "\n"
+              << "tolerance: error (rel-RMSE of f, cos theta_i weighted) <= " << tol << " (" << percent(tol) << ")\n\n";
     char buf[256];
-    std::snprintf(buf, sizeof buf, "  %-42s %10s %7s  %s", "model", "error", "cost", "within tol");
+    std::snprintf(buf, sizeof buf, "  %-42s %10s %10s  %s", "model", "error", "cost (x)", "within tol");
     std::cout << buf << "\n";
-    for (size_t k : by_error(fits)) {
+    // Without --details: every family within the tolerance, then the best others up to the
+    // short list's length.
+    const bool details = a.has("--details");
+    std::vector<size_t> order = by_error(fits);
+    size_t shown = 0, within = 0;
+    for (size_t k : order) within += fits[k].failure.empty() && fits[k].error.rel_rmse <= tol;
+    for (size_t k : order) {
         const FamilyFit& f = fits[k];
         bool ok = f.failure.empty() && f.error.rel_rmse <= tol;
-        std::snprintf(buf, sizeof buf, "  %-42s %10s %7.3f  %s", f.fit.family.c_str(),
+        if (!details && !ok && shown >= std::max(kShortList, within)) continue;
+        std::snprintf(buf, sizeof buf, "  %-42s %10s %10.2f  %s", f.fit.family.c_str(),
                       f.failure.empty() ? fixed(f.error.rel_rmse, 5).c_str() : "failed", costs.cost_of(f.fit.family),
                       ok ? "yes" : "");
         std::cout << buf << "\n";
+        ++shown;
     }
-    std::snprintf(buf, sizeof buf, "  %-42s %10s %7.3f  %s", "(keep the table)", "0", table_cost, "yes");
+    if (shown < order.size())
+        std::cout << "  ... " << order.size() - shown << " more, none within the tolerance (--details lists them)\n";
+    std::snprintf(buf, sizeof buf, "  %-42s %10s %10.2f  %s", "(keep the table)", "0", table_cost, "yes");
     std::cout << buf << "\n\n";
     if (choice < 0) {
-        std::cout << "choice: keep the table (no model within " << tol << ")\n";
+        std::cout << "choice: keep the table (no model within " << tol << "; the best, " << fits[order[0]].fit.family
+                  << ", has error " << (fits[order[0]].failure.empty() ? fixed(fits[order[0]].error.rel_rmse, 5) : "-")
+                  << ")\n";
         return 0;
     }
     const FamilyFit& c = fits[size_t(choice)];
-    std::snprintf(buf, sizeof buf, "choice: %s (error %.5f, cost %.3f; table cost %.3f)", c.fit.family.c_str(),
-                  c.error.rel_rmse, costs.cost_of(c.fit.family), table_cost);
-    std::cout << buf << "\n  spec: " << c.fit.spec << "\n  pov:  " << pov_finish_snippet(c.fit.spec) << "\n";
+    std::snprintf(buf, sizeof buf, "choice: %s (error %.5f = %s, cost %.2f x stock phong; the table costs %.2f x)",
+                  c.fit.family.c_str(), c.error.rel_rmse, percent(c.error.rel_rmse).c_str(), costs.cost_of(c.fit.family),
+                  table_cost);
+    std::cout << buf << "\n  spec: " << c.fit.spec << "\n" << pov_finish_snippet(c.fit.spec) << "\n";
     return 0;
 }
 
@@ -626,9 +774,12 @@ const std::vector<Command>& commands() {
          "--theta-i, theta_i nodes whose albedo exceeds 1 + tol (fail unless --allow-energy-gain).\n"
          "Exit status 1 on any failure.\n",
          {"--theta-i", "--albedo-tol", "--max-recip"}, {"--allow-energy-gain"}, 1, 1, cmd_check},
-        {"fit", "fit TABLE.brdf [--model all|FAMILY] [--coarse 5] [--cone 15] [--irls 3] [--restarts 2] [--threads N] [--tsv] [--quiet]",
-         "Fit analytic models to a table (no-data cells, NaN or negative, are excluded) and print\n"
-         "each fit's parameters, its error and a ready POV finish. docs/fitting.md explains the method.\n"
+        {"fit", "fit TABLE.brdf [--model all|FAMILY] [--details] [--coarse 5] [--cone 15] [--irls 3] [--restarts 2] [--threads N] [--tsv] [--quiet]",
+         "Fit analytic models to a table (no-data cells, NaN or negative, are excluded). One family:\n"
+         "its parameters, error, spec and a ready POV finish. Several: the best ten by error, the best\n"
+         "one's parameters, and its ready `finish { brdf_model { ... } }` as the last line.\n"
+         "Progress (families done, time elapsed and left) goes to stderr at least once a second.\n"
+         "docs/fitting.md explains the method.\n"
          "  --model M     all (default), lambert, oren_nayar, ward, ward_aniso, lafortune [k=N],\n"
          "                microfacet [d=blinn|gaussian|tr|beckmann] [g=vcavity|smith]\n"
          "                [f=none|dielectric|conductor|schlick] (omitted keys: every choice)\n"
@@ -637,26 +788,36 @@ const std::vector<Command>& commands() {
          "  --irls N      robust reweighting rounds (1 = plain least squares; default 3)\n"
          "  --restarts N  best scan starts refined by Levenberg-Marquardt (default 2)\n"
          "  --threads N   families fitted in parallel (default: the CPU count)\n"
+         "  --details     every family's parameters, error and finish, and the whole ranking\n"
          "  --tsv         one line per family: family, error, sample error, seconds, spec\n"
+         "  --quiet       no progress on stderr\n"
          "Error: sqrt(sum w (model - table)^2 / sum w table^2), w = cos(theta_i), over every node with\n"
-         "data and every channel, the model sampled at the nodes as `tabulate` samples them.\n",
-         {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads"}, {"--tsv", "--quiet"}, 1, 1, cmd_fit},
-        {"recommend", "recommend TABLE.brdf [--tol 0.05] [--costs FILE] [--model all|FAMILY] [--tsv] [fit options]",
+         "data and every channel, the model sampled at the nodes as `tabulate` samples them: a relative\n"
+         "error of f (0.02 = 2 %; a table with 2 % noise scores about 0.02 against its own model).\n",
+         {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads"}, {"--tsv", "--quiet", "--details"}, 1, 1, cmd_fit},
+        {"recommend", "recommend TABLE.brdf [--tol 0.05] [--costs FILE] [--model all|FAMILY] [--details] [--tsv] [fit options]",
          "Fit the models (as `fit`), rank them by error and render cost, and name the cheapest\n"
-         "model whose error is within --tol, or 'keep the table'.\n"
-         "  --tol E       largest acceptable rel-RMSE (cos-weighted, as `fit` reports; default 0.05)\n"
-         "  --costs FILE  trace-time ratios vs stock phong, lines 'FAMILY RATIO' (harness/tools/cost.py\n"
-         "                writes them). Default: $BRDF_COSTS, else costs.txt in the parent directory of\n"
-         "                brdftool's (build/costs.txt); without a file, a built-in rough order.\n"
+         "model whose error is within --tol, or 'keep the table'; the chosen model's ready finish\n"
+         "is the last line. Cost unit: trace time relative to stock POV-Ray's `phong` highlight on\n"
+         "the same scene (1.00 = as fast, 1.25 = a quarter slower).\n"
+         "  --tol E       largest acceptable error (rel-RMSE of f, cos-weighted, as `fit` reports;\n"
+         "                default 0.05 = 5 %)\n"
+         "  --costs FILE  trace-time ratios vs stock phong, lines 'FAMILY RATIO' (brdf-cost, i.e.\n"
+         "                harness/tools/cost.py, writes them). Default: $BRDF_COSTS, else costs.txt in\n"
+         "                the parent directory of brdftool's (build/costs.txt); without a file, a\n"
+         "                built-in rough order.\n"
+         "  --details     every family (default: those within --tol and the best ten)\n"
          "  --tsv         one line per family: family, error, cost, within_tol, spec; then 'table'\n"
-         "                and 'choice' lines\n",
-         {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads", "--tol", "--costs"}, {"--tsv", "--quiet"}, 1, 1, cmd_recommend},
+         "                and 'choice' lines\n"
+         "  --quiet       no progress on stderr\n",
+         {"--model", "--coarse", "--cone", "--irls", "--restarts", "--threads", "--tol", "--costs"}, {"--tsv", "--quiet", "--details"}, 1, 1, cmd_recommend},
     };
     return cmds;
 }
 
 void print_usage(std::ostream& os) {
-    os << "usage: brdftool COMMAND [ARGS]   (brdftool COMMAND --help for details)\n\ncommands:\n";
+    os << "usage: brdftool COMMAND [ARGS]   (brdftool help COMMAND, or brdftool COMMAND --help, for details;\n"
+          "                                  brdftool --version; man brdftool)\n\ncommands:\n";
     for (const Command& c : commands()) os << "  " << c.synopsis << "\n";
 }
 
@@ -700,7 +861,17 @@ Args parse_args(const Command& c, int argc, char** argv) {
     return a;
 }
 
+const Command* find_command(const std::string& name) {
+    for (const Command& c : commands())
+        if (name == c.name) return &c;
+    return nullptr;
+}
+
 }  // namespace
+
+#ifndef POVRAY_BRDF_VERSION
+#define POVRAY_BRDF_VERSION "unknown"
+#endif
 
 int main(int argc, char** argv) {
     if (argc < 2) {
@@ -708,13 +879,28 @@ int main(int argc, char** argv) {
         return 2;
     }
     const std::string name = argv[1];
+    if (name == "--version" || name == "-V" || name == "version") {
+        std::cout << "brdftool (povray-brdf) " << POVRAY_BRDF_VERSION << "\n"
+                  << ".brdf format version " << kTableVersion << " (brdf_data/README.md); shading library of the "
+                  << "POV-Ray 3.7.0.10 fork povray-brdf\n";
+        return 0;
+    }
     if (name == "--help" || name == "-h" || name == "help") {
+        // `brdftool help CMD` = `brdftool CMD --help`
+        if (argc > 2) {
+            const Command* c = find_command(argv[2]);
+            if (!c) {
+                std::cerr << "brdftool help: unknown command '" << argv[2] << "'\n";
+                print_usage(std::cerr);
+                return 2;
+            }
+            print_help(*c);
+            return 0;
+        }
         print_usage(std::cout);
         return 0;
     }
-    const Command* cmd = nullptr;
-    for (const Command& c : commands())
-        if (name == c.name) cmd = &c;
+    const Command* cmd = find_command(name);
     if (!cmd) {
         std::cerr << "brdftool: unknown command '" << name << "'\n";
         print_usage(std::cerr);
