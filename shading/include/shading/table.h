@@ -149,8 +149,8 @@ public:
     // theta_h, theta_d clamped to [0, pi/2], phi_d any real (period pi).
     Rgb eval_halfdiff(double theta_h, double theta_d, double phi_d, Interp interp) const;
     // From unit vectors in any frame: n the normal, wi towards the light, wo towards the
-    // viewer, both above the surface (n.wi > 0, n.wo > 0; the caller tests). Square roots and
-    // three atan2 calls, no frame: the renderer's per-light path (finish.cpp).
+    // viewer, both above the surface (n.wi > 0, n.wo > 0; the caller tests). Three square
+    // roots, two atan2 and one acos, no frame: the renderer's per-light path (finish.cpp).
     Rgb eval_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp) const;
     bool halfdiff() const { return geom_.layout == TableLayout::HalfDiff; }
 
