@@ -50,6 +50,16 @@ def test_plots_are_pngs(tmp_path):
     assert report.plot_speed_error([], tmp_path / "none.png") is None
 
 
+def test_layout_plot_is_a_png(tmp_path):
+    rows = [{"material": m, "spec": "s", "layout": lay, "resolution": res, "bytes": b, "rel_rmse": e}
+            for m in ("a", "b")
+            for lay, res, b, e in (("isotropic", "1°", 9.1e6, 1e-2), ("isotropic", "0.5°", 71e6, 3e-3),
+                                   ("halfdiff", "90×90×180", 17.5e6, 7e-3), ("halfdiff", "256×128×32", 12.6e6, 9e-4))]
+    p = report.plot_layouts(rows, tmp_path / "l.png")
+    assert p is not None and p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert report.plot_layouts([], tmp_path / "none.png") is None
+
+
 def test_jsonable_round_trips(tmp_path):
     d = report.jsonable({"a": np.float32(1.5), "b": np.arange(3), "c": float("nan"), "p": tmp_path, "t": (1, 2)})
     assert json.loads(json.dumps(d, allow_nan=False)) == {"a": 1.5, "b": [0, 1, 2], "c": None, "p": str(tmp_path),

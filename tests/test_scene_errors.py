@@ -56,7 +56,7 @@ def table_files(tmp_path_factory):
         "header-only.brdf": good[:50],
         "wrong-magic.brdf": b"PVBRDX\0\0" + good[8:],
         "version-2.brdf": patched("<I", 8, 2),
-        "layout-3.brdf": patched("<I", 16, 3),
+        "layout-4.brdf": patched("<I", 16, 4),  # 3 is the half/difference layout
         "nodes-huge.brdf": patched("<I", 32, 0xFFFFFFFF),
         "payload-huge.brdf": patched("<Q", 80, 1 << 62),
         "half.brdf": good[:len(good) // 2],
@@ -66,6 +66,9 @@ def table_files(tmp_path_factory):
         "negative.brdf": patched("<f", off + 8, -0.5, refresh=True),
         "inf.brdf": patched("<f", off + 8, math.inf, refresh=True),
     }
+    hd = bytearray(tables.tabulated_halfdiff("lambert rho=0.5", (8, 8, 8)).read_bytes())
+    struct.pack_into("<I", hd, 24, 1)  # the folded flag on a half/difference table
+    files["halfdiff-folded.brdf"] = bytes(hd)
     d = tmp_path_factory.mktemp("tables")
     paths = {}
     for name, data in files.items():
@@ -91,7 +94,8 @@ def scene_error(fork, finish, files=None):
     ("header-only.brdf", "brdf_table: header-only.brdf: offset 50: expected 112-byte header, found end of data after 50"),
     ("wrong-magic.brdf", 'brdf_table: wrong-magic.brdf: offset 0: expected magic "PVBRDF\\x00\\x00", found "PVBRDX\\x00\\x00"'),
     ("version-2.brdf", "brdf_table: version-2.brdf: offset 8: expected version 1, found 2"),
-    ("layout-3.brdf", "offset 16: expected layout 1 (isotropic) or 2 (anisotropic), found 3"),
+    ("layout-4.brdf", "offset 16: expected layout 1 (isotropic), 2 (anisotropic) or 3 (half/difference), found 4"),
+    ("halfdiff-folded.brdf", "offset 24: expected no reciprocity-folded flag on a half/difference table"),
     ("nodes-huge.brdf", "offset 32: expected theta_i node count in [2, 9001], found 4294967295"),
     ("payload-huge.brdf", "offset 80: expected payload size 7644 bytes"),
     ("half.brdf", "brdf_table: half.brdf: offset 3894: expected 7788 bytes (7644-byte payload at offset 144), found end of data"),

@@ -2,6 +2,7 @@
 (outside a checkout: the cache folder of :func:`harness.core.paths.cache_dir`).
 
     path = tables.tabulated("microfacet d=beckmann m=0.3", step=1.0)
+    path = tables.tabulated_halfdiff("microfacet d=beckmann m=0.02", nodes=(256, 128, 32))
 
 The cache key is the tool's whole command line (hashed), so a table is rebuilt only when
 what it would contain changes; delete ``build/brdf_cache`` to force it.
@@ -43,6 +44,12 @@ def tabulated(spec: str, step: float = 1.0, fold: bool = False, channels: int = 
     if fold:
         args.append("--fold")
     return cached(args, "tab")
+
+
+def tabulated_halfdiff(spec: str, nodes: Sequence[int] = (256, 128, 32), channels: int = 3) -> Path:
+    """A half/difference table (layout 3) of ``spec`` with ``nodes`` = (theta_h, theta_d, phi_d) counts."""
+    n = ",".join(str(int(x)) for x in nodes)
+    return cached(["tabulate", spec, "--layout", "halfdiff", "--nodes", n, "--channels", str(channels)], "hd")
 
 
 def measured_like(spec: str, step: float = 1.0, noise: float = 0.02, missing: float = 0.001,

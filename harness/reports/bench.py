@@ -99,6 +99,18 @@ row("brdf_model (same microfacet, direct) / stock phong+specular",
     Side("stock", REFERENCE_SCENE),
     Side("fork", REFERENCE_SCENE.replace(STOCK_FINISH, f'finish {{ brdf_model {{ "{TABLE_SPEC}" }} }}')),
     note="analytic evaluation")
+
+def _halfdiff_side() -> Side:
+    """The reference scene with the same material as a half/difference table (layout 3, the
+    default 256 x 128 x 32 nodes): the narrow-lobe layout's lookup cost on the 1 deg table's scene."""
+    return Side("fork", REFERENCE_SCENE.replace(STOCK_FINISH, 'finish { brdf_table { "t.brdf" } }'),
+                files={"t.brdf": lambda: tables.tabulated_halfdiff(TABLE_SPEC)})
+
+
+row("brdf_table halfdiff trilinear / stock phong+specular", Side("stock", REFERENCE_SCENE), _halfdiff_side(),
+    note="goal: the 1 deg table's")
+row("brdf_table halfdiff trilinear / brdf_table 1 deg trilinear", _table_side(), _halfdiff_side(),
+    note="same binary: the layouts' lookups; goal ~1.0")
 assert all(STOCK_FINISH not in r.candidate.scene for r in ROWS[1:])  # every candidate replaced it
 
 

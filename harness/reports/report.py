@@ -12,6 +12,9 @@ return:
 * **tables** (:data:`harness.reports.table_error.MATERIALS` at 0.5/1/2/5 deg): rel-RMSE of the table
   against the ``brdf_model`` it tabulates (:func:`harness.reports.table_error.study`), trace time of
   the same bench scene with the table;
+* **table layouts** (:data:`harness.reports.table_error.NARROW`, narrow Beckmann lobes): rel-RMSE
+  against the numpy model vs bytes per RGB table, isotropic at several steps and half/difference
+  at several node counts (:func:`harness.reports.table_error.layout_study`), one plot;
 * **dipole** (:mod:`harness.reports.dipole_bench`): the half-lit slab's profile error against the
   closed form at several ``error_bound``, stock POV subsurface beside it, trace time against
   stock ``phong`` on the same slab;
@@ -62,6 +65,7 @@ class Settings:
     model_size: int = 128            # sphere renders of harness.reports.model_bench (pixels)
     table_size: int = 160            # sphere renders of harness.reports.table_error
     steps: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0)
+    layouts: Optional[tuple] = None  # table_error.LAYOUTS unless given (the layouts section)
     time_size: tuple[int, int] = (640, 480)   # bench scene, for trace-time ratios
     rounds: int = 3                  # timing rounds (each: every finish once between stock renders)
     dipole_width: int = 160          # half-lit slab profile (harness.reports.dipole_bench)
@@ -77,8 +81,10 @@ class Settings:
 FULL = Settings()
 QUICK = Settings(quick=True, model_size=64, table_size=96, rounds=1, dipole_width=80,
                  error_bounds=(0.3, 0.7, 1.5), stock_samples=((25, 5), (100, 20)),
-                 gonio_grid="quick")
-SECTIONS = ("models", "tables", "dipole", "gonio", "stability")
+                 gonio_grid="quick",
+                 layouts=(("isotropic", 2.0), ("isotropic", 1.0), ("halfdiff", (128, 64, 32)),
+                          ("halfdiff", (256, 128, 32))))
+SECTIONS = ("models", "tables", "layouts", "dipole", "gonio", "stability")
 
 _rec_local = threading.local()
 _rec_lock = threading.Lock()
@@ -269,6 +275,22 @@ def table_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[
                                      "report: tables", "material", st.progress) for x in chunk]
 
 
+def layout_entries(st: Settings, log: Callable[[str], None]) -> list[dict]:
+    """Both table layouts for every material of :data:`harness.reports.table_error.NARROW`:
+    rel-RMSE against the numpy model and bytes (:func:`harness.reports.table_error.layout_study`)."""
+    from harness.reports import table_error
+    layouts = st.layouts or table_error.LAYOUTS
+
+    def one(item):
+        label, spec = item
+        rows = table_error.layout_study(spec, layouts, st.table_size)
+        for r in rows:
+            log(f"layout {label}, {r['layout']} {r['resolution']}: rel-RMSE {r['rel_rmse']:.1e}, "
+                f"{r['bytes'] / 1e6:.1f} MB")
+        return [{"material": label, "spec": spec, **r} for r in rows]
+    return [x for chunk in _parallel(one, list(table_error.NARROW.items()), st.workers) for x in chunk]
+
+
 def dipole_entries(st: Settings, maps: Path, log: Callable[[str], None]) -> list[tuple[dict, Any]]:
     """The fork's dipole at several error_bound values and stock subsurface on the half-lit slab,
     each with the bench row timing it against stock phong on the same slab."""
@@ -379,6 +401,50 @@ def plot_table_steps(entries: Sequence[dict], path: Path) -> Optional[Path]:
     return path
 
 
+def plot_layouts(rows: Sequence[dict], path: Path) -> Optional[Path]:
+    """rel-RMSE against the model vs bytes per RGB table: one colour per material, one line per
+    layout (isotropic steps: circles; half/difference node counts: squares; MERL's own
+    90 x 90 x 180 grid, which spends its nodes differently: triangles), the issue's goal marked."""
+    from harness.reports.table_error import GOAL_BYTES, GOAL_REL_RMSE
+    if not rows:
+        return None
+    plt = plotting.pyplot()
+    fig, ax = plt.subplots(figsize=(8.5, 5.5), dpi=100)
+    colours = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown"]
+    merl = "90×90×180"
+    series = (("isotropic", lambda r: r["layout"] == "isotropic", "-o", "isotropic (θi, θr, φ) at the step shown"),
+              ("halfdiff", lambda r: r["layout"] == "halfdiff" and r["resolution"] != merl, "--s",
+               "half/difference, θh × θd × φd nodes"),
+              ("merl", lambda r: r["resolution"] == merl, "^", "half/difference, MERL's 90×90×180 grid"))
+    mats = list(dict.fromkeys(r["material"] for r in rows))
+    for k, mat in enumerate(mats):
+        for _, pick, style, _ in series:
+            sel = sorted((r for r in rows if r["material"] == mat and pick(r)), key=lambda r: r["bytes"])
+            if sel:
+                ax.plot([r["bytes"] / 1e6 for r in sel], [r["rel_rmse"] for r in sel], style, ms=4,
+                        color=colours[k % len(colours)])
+    for r in rows:  # resolution labels along the first material's curves
+        if r["material"] == mats[0]:
+            ax.annotate(r["resolution"], (r["bytes"] / 1e6, r["rel_rmse"]), textcoords="offset points",
+                        xytext=(4, 4), fontsize=6, color="0.3")
+    for k, mat in enumerate(mats):  # legend: colour = material, style = layout
+        ax.plot([], [], "-", color=colours[k % len(colours)], label=mat)
+    for _, _, style, name in series:
+        ax.plot([], [], style, color="0.3", ms=4, label=name)
+    ax.axhline(GOAL_REL_RMSE, color="0.4", lw=0.8, ls=":")
+    ax.axvline(GOAL_BYTES / 1e6, color="0.4", lw=0.8, ls=":")
+    ax.annotate(f"goal: ≤ {GOAL_REL_RMSE:.1%} at ≤ {GOAL_BYTES / 1e6:g} MB", (GOAL_BYTES / 1e6, GOAL_REL_RMSE),
+                textcoords="offset points", xytext=(4, 4), fontsize=7, color="0.3")
+    ax.set(xscale="log", yscale="log", xlabel="bytes per RGB table (MB)",
+           ylabel="rel-RMSE of the sphere against the numpy model",
+           title="Table layouts for narrow lobes: isotropic (θi, θr, φ) vs half/difference (θh, θd, φd)")
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=6, ncol=2, loc="lower left")
+    fig.tight_layout()
+    plotting.save(fig, path)
+    return path
+
+
 def plot_dipole(entries: Sequence[dict], width: int, path: Path) -> Optional[Path]:
     """Profile error across the shadow edge, and rms error vs cost, fork dipole and stock."""
     from harness.reports import dipole_bench
@@ -481,6 +547,7 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
     if "dipole" in sections:
         jobs += dipole_entries(st, maps, log)
     entries = [e for e, _ in jobs]
+    layout_rows = layout_entries(st, log) if "layouts" in sections else []
     if st.timing:
         time_rows([(e, row) for e, row in jobs if row is not None], st.rounds, log, st.progress)
     gonio_points = (gonio.measure(gonio.FULL if st.gonio_grid == "full" else gonio.QUICK, progress=st.progress)
@@ -533,6 +600,23 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
                                    "reciprocity-folded (brdftool tabulate --fold). Error maps: |table − model| / "
                                    "model per pixel.",
                              images=[("error vs table step", steps_png)] if steps_png else []))
+    if layout_rows:
+        from harness.reports.table_error import GOAL_BYTES, GOAL_REL_RMSE
+        lpng = plot_layouts(layout_rows, out_dir / "table_layouts.png")
+        rows = [{"material": r["material"], "layout": r["layout"], "nodes / step": r["resolution"],
+                 "MB": r["bytes"] / 1e6, "rel-RMSE": r["rel_rmse"],
+                 "goal": "yes" if r["rel_rmse"] <= GOAL_REL_RMSE and r["bytes"] <= GOAL_BYTES else ""}
+                for r in layout_rows]
+        pages.append(Section("Table layouts for narrow lobes: error vs memory (harness.reports.table_error --layouts)",
+                             rows, anchor="layouts",
+                             notes=f"Sphere {st.table_size}×{st.table_size} under three lights (0°, 45°, 80°); "
+                                   "reference: the numpy model (harness.reference.models), not the fork. Isotropic "
+                                   "tables at the step shown, reciprocity-folded; half/difference tables (layout 3, "
+                                   "brdf_data/README.md) with θh × θd × φd nodes (90×90×180 is MERL's grid, "
+                                   "256×128×32 brdftool's default). MB: the file (payload + header), the bytes "
+                                   "a loaded RGB table holds. Goal (issue 16): rel-RMSE ≤ "
+                                   f"{GOAL_REL_RMSE:.1%} at ≤ {GOAL_BYTES / 1e6:g} MB.",
+                             images=[("error vs memory, both layouts", lpng)] if lpng else []))
     dips = [e for e in entries if e["kind"] in ("dipole", "stock subsurface")]
     if dips:
         dpng = plot_dipole(entries, st.dipole_width, out_dir / "dipole.png")
@@ -566,11 +650,15 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
              f"{os.cpu_count()} CPUs, {platform.system()} {platform.machine()}, {wall:.0f} s; load average "
              f"{load0:.1f} at the start, {load1:.1f} at the end (other work on the machine skews the timings).")
     page = write_page(out_dir / "index.html", "povray-brdf: finishes against their expectations", pages, notes)
-    dump = {"settings": dataclasses.asdict(st), "wall_s": wall, "entries": entries,
+    dump = {"settings": dataclasses.asdict(st), "wall_s": wall, "entries": entries, "layouts": layout_rows,
             "gonio": [dataclasses.asdict(p) for p in gonio_points], "stability": [dataclasses.asdict(r) for r in stab]}
     (out_dir / "report.json").write_text(json.dumps(jsonable(dump), indent=1, allow_nan=False))
     if entries:
         print(markdown(entries))
+    if layout_rows:
+        print("\n| material | layout | nodes / step | MB | rel-RMSE |\n|---|---|---|---|---|")
+        for r in layout_rows:
+            print(f"| {r['material']} | {r['layout']} | {r['resolution']} | {r['bytes'] / 1e6:.1f} | {r['rel_rmse']:.2e} |")
     if gonio_points:
         print("\n" + gonio.markdown(gonio_points))
     if stab:

@@ -12,7 +12,9 @@ in numpy (:mod:`harness.reference.models`, the harness's independent re-derivati
 as a line; ``--fit`` runs ``brdftool fit`` on the table and overlays its best model. The
 incident direction is marked with an arrow.
 
-An anisotropic table (layout 2) is plotted in its phi_i = 0 slice.
+An anisotropic table (layout 2) is plotted in its phi_i = 0 slice. A half/difference table
+(layout 3) has no nodes in that plane: it is drawn from its own interpolation
+(:func:`harness.core.brdf_io.halfdiff_lookup`) every 0.5 deg, at the angles asked for.
 """
 
 from __future__ import annotations
@@ -65,6 +67,17 @@ def incidence_plane(f: np.ndarray, theta_i_deg: float) -> Slice:
     return Slice(i * 90.0 / (nt - 1), theta, values)
 
 
+def halfdiff_plane(f: np.ndarray, theta_i_deg: float, n: int = 359) -> Slice:
+    """The plane of incidence of a half/difference table (theta_h, theta_d, phi_d, C), looked up
+    (trilinear, as the renderer does) at ``n`` viewing angles in (-90, 90) deg."""
+    tr = np.linspace(-89.5, 89.5, n)
+    ti = math.radians(theta_i_deg)
+    wi = np.broadcast_to(np.array([-math.sin(ti), 0.0, math.cos(ti)]), (n, 3))  # light on the back side
+    r = np.radians(tr)
+    wo = np.stack([np.sin(r), np.zeros(n), np.cos(r)], axis=-1)
+    return Slice(theta_i_deg, tr, brdf_io.halfdiff_lookup(f, wi, wo))
+
+
 def model_plane(spec: str, theta_i_deg: float, n: int = 361) -> tuple[np.ndarray, np.ndarray]:
     """A model (numpy reference) in the plane of incidence: signed theta_r (deg), f (n, 3)."""
     model = models.parse(spec)
@@ -104,11 +117,13 @@ def plot(table: Path, out: Path, theta_i: Sequence[float] = (0, 30, 60, 75),
          title: Optional[str] = None, shared_scale: bool = False) -> Path:
     """Write the figure; ``overlays`` are (label, spec) pairs drawn as lines. Each panel has
     its own rings unless ``shared_scale``."""
-    f, description = brdf_io.read_brdf(table)
+    tab = brdf_io.read_table(table)
+    f, description = tab.f, tab.description
     chans = [c for c in range(f.shape[-1])] if channels == "all" else ["rgb".index(channels)]
     if f.shape[-1] == 1:
         chans = [0]
-    slices = [incidence_plane(f, t) for t in theta_i]
+    hd = tab.layout == brdf_io.HALFDIFF
+    slices = [halfdiff_plane(f, t) if hd else incidence_plane(f, t) for t in theta_i]
     curves = {(label, s.theta_i): model_plane(spec, s.theta_i) for label, spec in overlays for s in slices}
 
     def scale_of(vals: list[np.ndarray]):
@@ -146,8 +161,9 @@ def plot(table: Path, out: Path, theta_i: Sequence[float] = (0, 30, 60, 75),
         ax.set_rlabel_position(-45)
         for c in chans:
             name, colour = CHANNELS[c] if f.shape[-1] == 3 else ("table", "black")
-            ax.plot(np.radians(s.theta_r), radius(s.values[:, c]), ".", ms=2.5, color=colour,
-                    label=f"table {name}" if f.shape[-1] == 3 else "table")
+            ax.plot(np.radians(s.theta_r), radius(s.values[:, c]), "-" if hd else ".", ms=2.5, lw=0.8,
+                    color=colour, label=("table (interpolated) " if hd else "table ") + name if f.shape[-1] == 3
+                    else "table")
         for k, (label, _) in enumerate(overlays):
             x, v = curves[(label, s.theta_i)]
             for c in chans:

@@ -4,10 +4,12 @@
     python3 shading/fuzz/make_corpus.py build/shading/brdftool shading/fuzz/corpus
 
 table/: coarse tables made by brdftool (15 and 30 deg steps: isotropic, folded, 1 channel,
-anisotropic, a simulated measurement with filled cells, a description), then broken
-variants of one of them (truncated, wrong magic, version, layout, node counts, steps,
-payload size, padding, trailing bytes, checksum) and valid-checksum payloads with NaN,
-negative and infinite values (the no-data paths).
+anisotropic, a simulated measurement with filled cells, a description; half/difference
+tables, RGB and grey, a few nodes per axis), then broken variants of one of them
+(truncated, wrong magic, version, layout, node counts, steps, payload size, padding,
+trailing bytes, checksum) and of a half/difference one (folded flag, n[3], each node count
+and step, a NaN value), and valid-checksum payloads with NaN, negative and infinite values
+(the no-data paths).
 merl/: small non-standard MERL .binary files (dims 2x2x4 and 3x4x6), with no-data samples,
 plus broken ones (truncated header, zero/negative/huge dims, short, long, +Inf).
 """
@@ -53,6 +55,10 @@ def main(brdftool, out):
             "ward-aniso-30-90": ["tabulate", "ward ax=0.05 ay=0.3 rho_s=0.25", "--layout", "aniso",
                                  "--step", "30", "--phi-step", "90"],
             "measured-15": ["measured-like", "lambert rho=0.4", "--step", "15", "--missing", "0.1", "--seed", "3"],
+            "halfdiff-8x6x10": ["tabulate", "microfacet m=0.2 f=dielectric eta=1.5 kd=0.2 rho_s=0.8", "--layout",
+                                "halfdiff", "--nodes", "8,6,10"],
+            "halfdiff-6x4x8-grey": ["tabulate", "microfacet m=0.05 f=conductor n=0.2 k=3", "--layout", "halfdiff",
+                                    "--nodes", "6,4,8", "--channels", "1"],
         }
         for name, args in runs.items():
             path = os.path.join(tmp, name + ".brdf")
@@ -77,7 +83,7 @@ def main(brdftool, out):
         "trailing-bytes": base + b"\0\0\0\0",
         "wrong-magic": b"PVBRDX\0\0" + base[8:],
         "version-2": patched("<I", 8, 2),
-        "layout-3": patched("<I", 16, 3),
+        "layout-4": patched("<I", 16, 4),
         "channels-2": patched("<I", 20, 2),
         "flags-unknown": patched("<I", 24, 4),
         "n0-huge": patched("<I", 32, 0xFFFFFFFF),
@@ -93,6 +99,26 @@ def main(brdftool, out):
         "value-inf": patched("<f", off + 8, math.inf, fix=True),
         "all-nan": refresh_checksum(base[:off] + struct.pack("<f", math.nan) * ((len(base) - off) // 4)),
     }
+    hd = good["halfdiff-8x6x10"]
+    hd_off = struct.unpack_from("<I", hd, 12)[0]
+
+    def hd_patched(fmt, at, value, fix=False):
+        d = bytearray(hd)
+        struct.pack_into(fmt, d, at, value)
+        return refresh_checksum(d) if fix else bytes(d)
+
+    bad.update({
+        "hd-folded": hd_patched("<I", 24, 1),
+        "hd-n0-one": hd_patched("<I", 32, 1),
+        "hd-n1-huge": hd_patched("<I", 36, 9001),
+        "hd-n2-huge": hd_patched("<I", 40, 18001),
+        "hd-n3-two": hd_patched("<I", 44, 2),
+        "hd-step0": hd_patched("<d", 48, 90.0 / 7),
+        "hd-step2": hd_patched("<d", 64, 180.0 / 11),
+        "hd-step3": hd_patched("<d", 72, 1.0),
+        "hd-value-nan": hd_patched("<f", hd_off + 4 * 100, math.nan, fix=True),
+        "hd-value-negative": hd_patched("<f", hd_off + 4 * 7, -1.0, fix=True),
+    })
     for name, data in bad.items():
         put(tdir, "bad-" + name + ".brdf", data)
 

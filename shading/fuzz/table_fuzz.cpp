@@ -1,5 +1,6 @@
 // libFuzzer target: the whole .brdf loader (load_table) on arbitrary bytes: header,
-// value checks, the no-data fill, folding, pole averaging and the albedo.
+// value checks, the no-data fill, folding, pole averaging and the albedo, in every layout
+// (half/difference tables: their pole means, albedo and angle lookups too).
 //
 // Every input is read as given and with its checksum fixed (fuzz_util.h), so mutations of
 // the payload reach the value checks. The reject policy (POV-Ray's) runs on every input;
@@ -30,6 +31,15 @@ void exercise(const BrdfTable& t) {
     for (double th : {0.0, 0.3, 1.2, 1.5707963267948966}) {
         Rgb a = t.directional_albedo(th);
         for (int c = 0; c < 3; ++c) fuzz_check(std::isfinite(a[c]) && a[c] >= 0, "finite non-negative albedo");
+    }
+    if (t.halfdiff()) {  // the angle lookups, at the poles, the phi_d wrap and out of range
+        const double angles[] = {0.0, 1e-12, 0.5, 1.5707963267948966, 3.14159265358979, -2.0, 1e300};
+        for (double a : angles)
+            for (double b : angles)
+                for (Interp in : {Interp::Linear, Interp::Nearest}) {
+                    Rgb v = t.eval_halfdiff(a, b, a + b, in);
+                    for (int c = 0; c < 3; ++c) fuzz_check(std::isfinite(v[c]) && v[c] >= 0, "finite non-negative halfdiff");
+                }
     }
     // The writer: its output must parse, and carry the same floats.
     std::vector<uint8_t> bytes = encode_table(t);

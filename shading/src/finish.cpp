@@ -116,6 +116,12 @@ std::size_t finish_model_live_count() {
 
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment) {
+    if (model.halfdiff_table) {
+        const double ci = dot(n, to_light);
+        if (!(ci > 0) || !(dot(n, to_eye) > 0)) return Rgb(0.0);
+        Rgb w = model.halfdiff_table->eval_halfdiff_dirs(n, to_light, to_eye, model.iso_interp) * (kPi * ci) * model.scale;
+        return model.tint ? w * pigment : w;
+    }
     if (model.iso_table) {
         // Isotropic table: theta_i, theta_r and phi = phi_r - phi_i straight from world vectors.
         // |sin phi| and cos phi scaled by sin(theta_i) sin(theta_r): the normal component of
@@ -284,7 +290,10 @@ std::shared_ptr<FinishModel> finish_model_around(std::shared_ptr<const AlbedoNod
     m->brdf = albedo->brdf();
     m->base = m->brdf->lambert_base();
     const BrdfTable* table = table_of(*m->brdf, &m->iso_interp);
-    if (table && !table->anisotropic()) m->iso_table = table;
+    if (table && table->halfdiff())
+        m->halfdiff_table = table;
+    else if (table && !table->anisotropic())
+        m->iso_table = table;
     m->albedo = std::move(albedo);
     return m;
 }

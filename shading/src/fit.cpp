@@ -118,6 +118,9 @@ ErrorStats table_error(const Brdf& model, const TableGrid& grid) {
 
 FitData fit_samples(const TableGrid& grid, const FitSampling& sp) {
     const TableGeometry& g = grid.geom;
+    if (g.layout == TableLayout::HalfDiff)
+        throw std::invalid_argument("fit: half/difference tables are not fitted directly; resample first "
+                                    "(brdftool resample IN.brdf -o OUT.brdf --layout iso --step 1)");
     FitData d;
     d.channels = g.channels;
     const int C = g.channels;

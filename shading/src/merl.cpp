@@ -199,4 +199,49 @@ std::unique_ptr<BrdfTable> merl_to_table(const MerlBrdf& merl, const MerlConvert
     return build_table(std::move(grid), bo);
 }
 
+std::unique_ptr<BrdfTable> merl_to_halfdiff(const MerlBrdf& merl, const MerlConvertOptions& opt) {
+    const MerlDims& d = merl.dims();
+    if (opt.fold)
+        throw std::invalid_argument("merl_to_halfdiff: a half/difference table is reciprocal by construction (no --fold)");
+    if (d.theta_h < 2 || d.theta_d < 2 || d.phi_d < 2)
+        throw std::invalid_argument("merl_to_halfdiff: " + merl.describe() +
+                                    ": a half/difference table needs at least 2 bins per axis");
+    TableGrid grid(TableGeometry::halfdiff(d.theta_h, d.theta_d, d.phi_d, opt.channels));
+    const TableGeometry& g = grid.geom;
+    const int C = g.channels;
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    uint32_t idx[4];
+    Vec3 wi, wo;
+    for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
+        g.unravel(cell, idx);
+        MerlBrdf::Bin b;
+        b.theta_h = idx[0];
+        b.theta_d = idx[1];
+        b.phi_d = idx[2];
+        b.index = cell;  // the same row-major order as MERL's channel planes
+        const Rgb v = merl.value(b);
+        bool ok = true;
+        for (int c = 0; c < 3; ++c) ok = ok && v[c] >= 0;
+        if (!ok && opt.nodata == NoDataPolicy::Reject && g.halfdiff_node_pair(idx, wi, wo)) {
+            int c = 0;
+            while (v[c] >= 0) ++c;
+            std::ostringstream e;
+            e << "a sample >= 0 in bin theta_h=" << b.theta_h << " theta_d=" << b.theta_d << " phi_d=" << b.phi_d
+              << " (channel " << kChannelName[c] << ", both directions above the horizon; no-data policy: reject)";
+            throw_table_error(merl.name(), merl.file_offset(b, c), e.str(), detail::fmt(v[c] / MerlBrdf::kScale[c], 9));
+        }
+        if (C == 1)
+            grid.values[cell] = ok ? float(v.average()) : nan;
+        else
+            for (int c = 0; c < 3; ++c) grid.values[cell * 3 + c] = v[c] >= 0 ? float(v[c]) : nan;
+    }
+    BuildOptions bo;
+    bo.nodata = NoDataPolicy::Fill;  // inside no-data cells were rejected above if asked to
+    bo.interp = opt.interp;
+    bo.name = merl.name();
+    bo.description = "MERL " + merl.name() + " (" + std::to_string(d.theta_h) + "x" + std::to_string(d.theta_d) + "x" +
+                     std::to_string(d.phi_d) + ", bins stored as nodes, no resampling)";
+    return build_table(std::move(grid), bo);
+}
+
 }  // namespace shading

@@ -42,13 +42,7 @@ bool valid_value(float v) { return std::isfinite(v) && v >= 0.0f; }
 // Human-readable node label for error messages.
 std::string cell_label(const TableGeometry& g, const uint32_t idx[4], int channel) {
     std::ostringstream s;
-    if (g.layout == TableLayout::Isotropic) {
-        s << "theta_i=" << detail::fmt(g.axis_deg(0, idx[0]), 9) << " theta_r=" << detail::fmt(g.axis_deg(1, idx[1]), 9)
-          << " phi=" << detail::fmt(g.axis_deg(2, idx[2]), 9);
-    } else {
-        s << "theta_i=" << detail::fmt(g.axis_deg(0, idx[0]), 9) << " phi_i=" << detail::fmt(g.axis_deg(1, idx[1]), 9)
-          << " theta_r=" << detail::fmt(g.axis_deg(2, idx[2]), 9) << " phi_r=" << detail::fmt(g.axis_deg(3, idx[3]), 9);
-    }
+    for (int a = 0; a < g.axes(); ++a) s << (a ? " " : "") << g.axis_name(a) << "=" << detail::fmt(g.axis_deg(a, idx[a]), 9);
     s << " deg, channel " << channel;
     return s.str();
 }
@@ -94,7 +88,7 @@ ReciprocityStats reciprocity_of(const TableGeometry& g, const float* v) {
     double fmax = 0;
     for (uint64_t k = 0, nv = g.values(); k < nv; ++k)
         if (valid_value(v[k])) fmax = std::max(fmax, double(v[k]));
-    if (g.folded) {
+    if (g.folded || g.layout == TableLayout::HalfDiff) {  // reciprocal by construction
         s.applicable = true;
         return s;
     }
@@ -195,21 +189,52 @@ TableGeometry TableGeometry::anisotropic(double theta_step_deg, double phi_step_
     return g;
 }
 
-bool TableGeometry::is_phi_axis(int axis) const {
-    return layout == TableLayout::Isotropic ? axis == 2 : (axis == 1 || axis == 3);
+TableGeometry TableGeometry::halfdiff(uint32_t n_h, uint32_t n_d, uint32_t n_p, int channels) {
+    TableGeometry g;
+    g.layout = TableLayout::HalfDiff;
+    g.channels = channels;
+    g.n[0] = n_h;
+    g.n[1] = n_d;
+    g.n[2] = n_p;
+    g.n[3] = 1;
+    g.folded = false;
+    g.validate();
+    return g;
 }
-bool TableGeometry::is_periodic(int axis) const { return layout == TableLayout::Anisotropic && is_phi_axis(axis); }
+
+bool TableGeometry::is_phi_axis(int axis) const {
+    return layout == TableLayout::Anisotropic ? (axis == 1 || axis == 3) : axis == 2;
+}
+bool TableGeometry::is_periodic(int axis) const { return layout != TableLayout::Isotropic && is_phi_axis(axis); }
 
 double TableGeometry::step_deg(int axis) const {
+    if (layout == TableLayout::HalfDiff) return (axis == 2 ? 180.0 : 90.0) / double(n[axis]);
     if (!is_phi_axis(axis)) return 90.0 / double(n[axis] - 1);
     if (is_periodic(axis)) return 360.0 / double(n[axis]);
     return 180.0 / double(n[axis] - 1);
 }
 
 double TableGeometry::axis_deg(int axis, uint32_t index) const {
+    if (layout == TableLayout::HalfDiff) {  // bin centres (table.h)
+        const double u = (double(index) + 0.5) / double(n[axis]);
+        return axis == 0 ? 90.0 * u * u : (axis == 1 ? 90.0 : 180.0) * u;
+    }
     // The last theta/iso-phi node is exactly the range end, not a rounded multiple.
     if (!is_periodic(axis) && index + 1 == n[axis]) return is_phi_axis(axis) ? 180.0 : 90.0;
     return double(index) * step_deg(axis);
+}
+
+uint32_t TableGeometry::max_nodes(int axis) const {
+    if (layout == TableLayout::HalfDiff) return axis == 2 ? kMaxHalfDiffPhi : kMaxHalfDiffTheta;
+    return !is_phi_axis(axis) ? kMaxThetaNodes : (is_periodic(axis) ? kMaxAnisoPhiNodes : kMaxIsoPhiNodes);
+}
+
+const char* TableGeometry::axis_name(int a) const {
+    static const char* iso[] = {"theta_i", "theta_r", "phi", "unused"};
+    static const char* aniso[] = {"theta_i", "phi_i", "theta_r", "phi_r"};
+    static const char* hd[] = {"theta_h", "theta_d", "phi_d", "unused"};
+    if (a < 0 || a > 3) return "axis";
+    return layout == TableLayout::Isotropic ? iso[a] : layout == TableLayout::Anisotropic ? aniso[a] : hd[a];
 }
 
 uint64_t TableGeometry::cells() const {
@@ -222,21 +247,28 @@ uint64_t TableGeometry::values() const { return mul_checked(cells(), uint64_t(ch
 
 void TableGeometry::validate() const {
     auto bad = [](const std::string& m) { throw std::invalid_argument("table geometry: " + m); };
-    if (layout != TableLayout::Isotropic && layout != TableLayout::Anisotropic) bad("unknown layout");
+    if (layout != TableLayout::Isotropic && layout != TableLayout::Anisotropic && layout != TableLayout::HalfDiff)
+        bad("unknown layout");
     if (channels != 1 && channels != 3) bad("channels must be 1 or 3, not " + std::to_string(channels));
     for (int a = 0; a < axes(); ++a) {
-        uint32_t hi = !is_phi_axis(a) ? kMaxThetaNodes : (is_periodic(a) ? kMaxAnisoPhiNodes : kMaxIsoPhiNodes);
+        uint32_t hi = max_nodes(a);
         if (n[a] < 2 || n[a] > hi)
-            bad("axis " + std::to_string(a) + " has " + std::to_string(n[a]) + " nodes, range [2, " +
-                std::to_string(hi) + "]");
+            bad("axis " + std::to_string(a) + " (" + axis_name(a) + ") has " + std::to_string(n[a]) +
+                " nodes, range [2, " + std::to_string(hi) + "]");
     }
-    if (layout == TableLayout::Isotropic && n[3] != 1) bad("isotropic tables have n[3] == 1");
+    if (layout != TableLayout::Anisotropic && n[3] != 1) bad("three-axis tables have n[3] == 1");
     if (folded && layout != TableLayout::Isotropic) bad("only isotropic tables can be reciprocity-folded");
     if (folded && n[0] != n[1]) bad("a folded table needs as many theta_i as theta_r nodes");
 }
 
 std::string TableGeometry::describe() const {
     std::ostringstream s;
+    if (layout == TableLayout::HalfDiff) {
+        s << "half/difference " << n[0] << "x" << n[1] << "x" << n[2] << " (theta_h ((i+1/2)/" << n[0]
+          << ")^2 x 90 deg, theta_d " << detail::fmt(step_deg(1), 9) << " deg, phi_d " << detail::fmt(step_deg(2), 9)
+          << " deg), " << channels << (channels == 1 ? " channel" : " channels");
+        return s.str();
+    }
     s << (layout == TableLayout::Isotropic ? "isotropic " : "anisotropic ");
     for (int a = 0; a < axes(); ++a) s << (a ? "x" : "") << n[a];
     s << " (theta " << detail::fmt(step_deg(0), 9) << " deg, phi " << detail::fmt(step_deg(layout == TableLayout::Isotropic ? 2 : 1), 9)
@@ -263,6 +295,10 @@ BrdfTable::BrdfTable(const TableGeometry& geometry, std::vector<float> values, T
         s *= geom_.n[a];
     }
     for (int a = 0; a < geom_.axes(); ++a) inv_step_[a] = 1.0 / geom_.step_deg(a);
+    if (geom_.layout == TableLayout::HalfDiff) {
+        init_halfdiff();  // virtual poles and the albedo over the half vector (table_halfdiff.cpp)
+        return;
+    }
     average_poles();
     compute_albedo();
 }
@@ -347,13 +383,15 @@ Rgb BrdfTable::gather(const AxisPos pos[4], Interp interp) const {
 
 Rgb BrdfTable::eval_iso(double theta_i, double theta_r, double phi, Interp interp) const {
     if (geom_.layout == TableLayout::Anisotropic) return eval_aniso(theta_i, 0.0, theta_r, phi, interp);
+    if (geom_.layout == TableLayout::HalfDiff)
+        return f(spherical_direction(theta_r, phi), spherical_direction(theta_i, 0.0), interp);
     AxisPos pos[4] = {locate(0, theta_i * kRadToDeg, interp), locate(1, theta_r * kRadToDeg, interp),
                       locate(2, phi * kRadToDeg, interp), {0, 0, 0.0}};
     return gather(pos, interp);
 }
 
 Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {
-    if (geom_.layout == TableLayout::Isotropic) return eval_iso(theta_i, theta_r, phi_r - phi_i, interp);
+    if (geom_.layout != TableLayout::Anisotropic) return eval_iso(theta_i, theta_r, phi_r - phi_i, interp);
     AxisPos pos[4] = {locate(0, theta_i * kRadToDeg, interp), locate(1, phi_i * kRadToDeg, interp),
                       locate(2, theta_r * kRadToDeg, interp), locate(3, phi_r * kRadToDeg, interp)};
     return gather(pos, interp);
@@ -361,6 +399,7 @@ Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double p
 
 Rgb BrdfTable::f(const Vec3& wo, const Vec3& wi, Interp interp) const {
     if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    if (geom_.layout == TableLayout::HalfDiff) return eval_halfdiff_dirs(Vec3(0, 0, 1), wi, wo, interp);
     // atan2 of (sin, cos) keeps full precision near the pole, where acos(z) does not.
     double ti = std::atan2(std::hypot(wi.x, wi.y), wi.z);
     double tr = std::atan2(std::hypot(wo.x, wo.y), wo.z);
@@ -450,13 +489,25 @@ void BrdfTable::compute_albedo() {
 }
 
 Rgb BrdfTable::directional_albedo(double theta_i) const {
+    if (geom_.layout == TableLayout::HalfDiff) {  // nodes every 90/(size-1) deg
+        double x = theta_i * kRadToDeg / 90.0 * double(albedo_.size() - 1);
+        if (!(x > 0)) x = 0;  // also NaN
+        const size_t i = std::min(size_t(x), albedo_.size() - 2);
+        const double t = std::min(x - double(i), 1.0);
+        return albedo_[i] * (1.0 - t) + albedo_[i + 1] * t;
+    }
     AxisPos p = locate(0, theta_i * kRadToDeg, Interp::Linear);
     return albedo_[p.i0] * (1.0 - p.t) + albedo_[p.i1] * p.t;
 }
 
+double BrdfTable::albedo_node_deg(size_t k) const {
+    if (geom_.layout == TableLayout::HalfDiff) return 90.0 * double(k) / double(albedo_.size() - 1);
+    return geom_.axis_deg(0, uint32_t(k));
+}
+
 size_t BrdfTable::bytes_used() const {
     return sizeof(*this) + values_.capacity() * sizeof(float) + albedo_.capacity() * sizeof(Rgb) +
-           info_.description.capacity();
+           (pole_h_.capacity() + pole_d_.capacity()) * sizeof(float) + info_.description.capacity();
 }
 
 // ---------------------------------------------------------------- grids
@@ -478,7 +529,9 @@ uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::st
     std::vector<float>& v = grid.values;
     if (v.size() != g.values()) throw std::invalid_argument("apply_nodata_policy: grid size does not match geometry");
     uint32_t idx[4];
-    uint64_t bad_cells = 0, first_bad = UINT64_MAX;
+    uint64_t bad_cells = 0, first_bad = UINT64_MAX, outside_bad = 0;
+    const bool hd = g.layout == TableLayout::HalfDiff;
+    Vec3 wi, wo;
     for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
         bool bad = false;
         for (int c = 0; c < C; ++c) {
@@ -489,15 +542,23 @@ uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::st
                                   "a finite value or a no-data marker (NaN or < 0) at " + cell_label(g, idx, c),
                                   value_text(x));
             }
-            if (!valid_value(x)) {
-                bad = true;
-                if (first_bad == UINT64_MAX) first_bad = cell * C + c;
+            if (!valid_value(x)) bad = true;
+        }
+        if (!bad) continue;
+        if (hd) {  // outside cells are filled under either policy, and not counted
+            g.unravel(cell, idx);
+            if (!g.halfdiff_node_pair(idx, wi, wo)) {
+                ++outside_bad;
+                continue;
             }
         }
-        bad_cells += bad;
+        ++bad_cells;
+        if (first_bad == UINT64_MAX)
+            for (int c = 0; c < C && first_bad == UINT64_MAX; ++c)
+                if (!valid_value(v[cell * C + c])) first_bad = cell * C + c;
     }
-    if (bad_cells == 0) return 0;
-    if (policy == NoDataPolicy::Reject) {
+    if (bad_cells + outside_bad == 0) return 0;
+    if (policy == NoDataPolicy::Reject && bad_cells > 0) {
         g.unravel(first_bad / C, idx);
         throw_table_error(name, first_bad * 4,
                           "a value >= 0 at " + cell_label(g, idx, int(first_bad % C)) + " (no-data policy: reject)",
@@ -612,6 +673,7 @@ TableGrid unfold(const BrdfTable& table) {
 // of 11 at 89.5 deg). Nothing renders the node itself: POV's weight has cos_i = 0 there.
 double TableGeometry::sample_deg(int axis, uint32_t i) const {
     const double deg = axis_deg(axis, i);
+    if (layout == TableLayout::HalfDiff) return deg;  // bin centres: no node on the horizon
     const bool theta = !is_phi_axis(axis);
     return theta && i + 1 == n[axis] ? deg - 0.5 * (90.0 / double(n[axis] - 1)) : deg;
 }
@@ -633,7 +695,12 @@ TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
     for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
         g.unravel(cell, idx);
         Vec3 wi, wo;
-        if (iso) {
+        if (g.layout == TableLayout::HalfDiff) {
+            if (!g.halfdiff_node_pair(idx, wi, wo)) {  // outside: left for the no-data fill
+                for (int c = 0; c < C; ++c) grid.values[cell * C + c] = std::numeric_limits<float>::quiet_NaN();
+                continue;
+            }
+        } else if (iso) {
             wi = spherical_direction(g.sample_deg(0, idx[0]) * kDegree, 0.0);
             wo = spherical_direction(g.sample_deg(1, idx[1]) * kDegree, g.axis_deg(2, idx[2]) * kDegree);
         } else {
@@ -654,14 +721,27 @@ TableGrid tabulate(const Brdf& brdf, const TableGeometry& geometry) {
 }
 
 TableGrid resample(const BrdfTable& src, const TableGeometry& geometry, Interp interp) {
-    if (src.anisotropic() && geometry.layout == TableLayout::Isotropic)
-        throw std::invalid_argument("resample: an anisotropic table cannot be resampled to the isotropic layout");
+    if (src.anisotropic() && geometry.layout != TableLayout::Anisotropic)
+        throw std::invalid_argument("resample: an anisotropic table can only be resampled to the anisotropic layout");
     TableGrid grid(geometry);
     const TableGeometry& g = grid.geom;
     const int C = g.channels;
     uint32_t idx[4];
     for (uint64_t cell = 0, cells = g.cells(); cell < cells; ++cell) {
         g.unravel(cell, idx);
+        if (g.layout == TableLayout::HalfDiff) {
+            Vec3 wi, wo;
+            if (!g.halfdiff_node_pair(idx, wi, wo)) {  // outside: left for the no-data fill
+                for (int c = 0; c < C; ++c) grid.values[cell * C + c] = std::numeric_limits<float>::quiet_NaN();
+                continue;
+            }
+            Rgb v = src.f(wo, wi, interp);
+            if (C == 1)
+                grid.values[cell] = float(src.geometry().channels == 1 ? v.r : v.average());
+            else
+                for (int c = 0; c < 3; ++c) grid.values[cell * 3 + c] = float(v[c]);
+            continue;
+        }
         Rgb v = g.layout == TableLayout::Isotropic
                     ? src.eval_iso(g.axis_deg(0, idx[0]) * kDegree, g.axis_deg(1, idx[1]) * kDegree,
                                    g.axis_deg(2, idx[2]) * kDegree, interp)
@@ -706,7 +786,7 @@ CheckReport check_table(const BrdfTable& table, const std::vector<double>& theta
         if (m > 1.0 + albedo_tolerance) ++r.albedo_nodes_over_one;
         if (m > r.max_albedo) {
             r.max_albedo = m;
-            r.max_albedo_theta_deg = table.geometry().axis_deg(0, i);
+            r.max_albedo_theta_deg = table.albedo_node_deg(i);
         }
     }
     return r;

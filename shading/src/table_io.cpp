@@ -65,11 +65,6 @@ std::string quoted_bytes(const uint8_t* p, size_t n) {
     }
     return s + "\"";
 }
-const char* axis_name(const TableGeometry& g, int a) {
-    static const char* iso[] = {"theta_i", "theta_r", "phi", "unused"};
-    static const char* aniso[] = {"theta_i", "phi_i", "theta_r", "phi_r"};
-    return g.layout == TableLayout::Isotropic ? iso[a] : aniso[a];
-}
 uint64_t align16(uint64_t x) { return (x + 15) & ~uint64_t(15); }
 
 // Node label for a payload value index (folded payloads enumerate pairs i <= r).
@@ -91,7 +86,7 @@ std::string payload_label(const TableGeometry& g, uint64_t value_index) {
         }
     }
     std::ostringstream s;
-    for (int a = 0; a < g.axes(); ++a) s << (a ? " " : "") << axis_name(g, a) << "=" << detail::fmt(g.axis_deg(a, idx[a]), 9);
+    for (int a = 0; a < g.axes(); ++a) s << (a ? " " : "") << g.axis_name(a) << "=" << detail::fmt(g.axis_deg(a, idx[a]), 9);
     s << " deg, channel " << value_index % C;
     return s.str();
 }
@@ -124,8 +119,9 @@ TableHeader parse_table_header(const uint8_t* d, size_t size, const std::string&
         throw_table_error(name, 8, "version " + std::to_string(kTableVersion), std::to_string(h.version));
     h.payload_offset = rd_u32(d + 12);
     uint32_t layout = rd_u32(d + 16);
-    if (layout != 1 && layout != 2)
-        throw_table_error(name, 16, "layout 1 (isotropic) or 2 (anisotropic)", std::to_string(layout));
+    if (layout != 1 && layout != 2 && layout != 3)
+        throw_table_error(name, 16, "layout 1 (isotropic), 2 (anisotropic) or 3 (half/difference)",
+                          std::to_string(layout));
     TableGeometry& g = h.geom;
     g.layout = TableLayout(layout);
     uint32_t channels = rd_u32(d + 20);
@@ -135,7 +131,11 @@ TableHeader parse_table_header(const uint8_t* d, size_t size, const std::string&
     if (h.flags & ~kKnownFlags) throw_table_error(name, 24, "flags within 0x3", hex64(h.flags));
     g.folded = (h.flags & kFlagFolded) != 0;
     if (g.folded && g.layout != TableLayout::Isotropic)
-        throw_table_error(name, 24, "no reciprocity-folded flag on an anisotropic table", hex64(h.flags));
+        throw_table_error(name, 24,
+                          std::string("no reciprocity-folded flag on ") +
+                              (g.layout == TableLayout::Anisotropic ? "an anisotropic table"
+                                                                    : "a half/difference table (reciprocal by construction)"),
+                          hex64(h.flags));
     uint32_t units = rd_u32(d + 28);
     if (units != kUnitsPerSr) throw_table_error(name, 28, "units 1 (1/sr)", std::to_string(units));
 
@@ -143,14 +143,19 @@ TableHeader parse_table_header(const uint8_t* d, size_t size, const std::string&
     for (int a = 0; a < 4; ++a) {
         g.n[a] = rd_u32(d + 32 + 4 * a);
         const size_t at = 32 + 4 * size_t(a);
-        if (a == 3 && g.layout == TableLayout::Isotropic) {
-            if (g.n[3] != 1) throw_table_error(name, at, "1 (isotropic tables have three axes)", std::to_string(g.n[3]));
+        if (a == 3 && g.layout != TableLayout::Anisotropic) {
+            if (g.n[3] != 1)
+                throw_table_error(name, at,
+                                  std::string("1 (") +
+                                      (g.layout == TableLayout::Isotropic ? "isotropic" : "half/difference") +
+                                      " tables have three axes)",
+                                  std::to_string(g.n[3]));
             continue;
         }
-        uint32_t hi = !g.is_phi_axis(a) ? 9001 : (g.is_periodic(a) ? 36000 : 18001);
+        const uint32_t hi = g.max_nodes(a);
         if (g.n[a] < 2 || g.n[a] > hi)
             throw_table_error(name, at,
-                              std::string(axis_name(g, a)) + " node count in [2, " + std::to_string(hi) + "]",
+                              std::string(g.axis_name(a)) + " node count in [2, " + std::to_string(hi) + "]",
                               std::to_string(g.n[a]));
     }
     if (g.folded && g.n[1] != g.n[0])
@@ -160,10 +165,10 @@ TableHeader parse_table_header(const uint8_t* d, size_t size, const std::string&
     for (int a = 0; a < 4; ++a) {
         const size_t at = 48 + 8 * size_t(a);
         double step = rd_f64(d + at);
-        double want = (a == 3 && g.layout == TableLayout::Isotropic) ? 0.0 : g.step_deg(a);
+        double want = (a == 3 && g.layout != TableLayout::Anisotropic) ? 0.0 : g.step_deg(a);
         if (!(std::fabs(step - want) <= 1e-9 * std::max(1.0, want)))
             throw_table_error(name, at,
-                              std::string(axis_name(g, a)) + " step " + detail::fmt(want, 9) + " deg (from " +
+                              std::string(g.axis_name(a)) + " step " + detail::fmt(want, 9) + " deg (from " +
                                   std::to_string(g.n[a]) + " nodes)",
                               detail::fmt(step, 9));
     }

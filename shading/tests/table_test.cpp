@@ -504,8 +504,8 @@ TEST(TableLoader, RejectsBrokenFiles) {
         expect_error_format(m, 8);
         EXPECT_NE(m.find("expected version 1, found 2"), std::string::npos) << m;
     }
-    {  // channels, layout, units, flags, reserved
-        for (auto [at, v] : {std::pair<int, int>{20, 2}, {16, 3}, {28, 7}, {24, 0x10}, {108, 1}}) {
+    {  // channels, layout (3 is the half/difference layout, 4 is unknown), units, flags, reserved
+        for (auto [at, v] : {std::pair<int, int>{20, 2}, {16, 4}, {28, 7}, {24, 0x10}, {108, 1}}) {
             std::vector<uint8_t> b = good;
             b[at] = uint8_t(v);
             expect_error_format(load_error(b), at);

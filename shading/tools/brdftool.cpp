@@ -116,7 +116,24 @@ void guard_size(const TableGeometry& g) {
     uint64_t bytes = g.values() * 4;
     if (bytes > kMaxTableBytes)
         throw UsageError("a " + g.describe() + " table would take " + mb(bytes) +
-                         " (limit 2 GiB); choose a coarser --step/--phi-step");
+                         " (limit 2 GiB); choose a coarser --step/--phi-step (--nodes for halfdiff)");
+}
+
+// The half/difference layout's node counts: --nodes NH,ND,NP (theta_h, theta_d, phi_d).
+// The default, 256 x 128 x 32 (12.6 MB in RGB), keeps Beckmann lobes down to m = 0.02 within
+// 0.1 % rel-RMSE on the harness's sphere (brdf_data/README.md, "Half/difference layout").
+const std::vector<double> kDefaultHalfDiffNodes = {256, 128, 32};
+
+TableGeometry halfdiff_geometry(const Args& a, int channels) {
+    if (a.has("--step") || a.has("--phi-step"))
+        throw UsageError("--step/--phi-step apply to the iso and aniso layouts; --layout halfdiff takes --nodes NH,ND,NP");
+    const std::vector<double> v = a.list("--nodes", kDefaultHalfDiffNodes);
+    if (v.size() != 3) throw UsageError("--nodes: three counts NH,ND,NP (theta_h, theta_d, phi_d), e.g. 90,90,180");
+    for (double x : v)
+        if (!(x >= 2) || x != std::floor(x) || x > kMaxHalfDiffPhi)
+            throw UsageError("--nodes: counts are integers >= 2 (theta_h, theta_d <= " + std::to_string(kMaxHalfDiffTheta) +
+                             ", phi_d <= " + std::to_string(kMaxHalfDiffPhi) + ")");
+    return TableGeometry::halfdiff(uint32_t(v[0]), uint32_t(v[1]), uint32_t(v[2]), channels);
 }
 
 TableGeometry geometry_opts(const Args& a, bool anisotropic, double def_step) {
@@ -156,10 +173,14 @@ int cmd_tabulate(Args& a) {
     std::string spec = joined_spec(a);
     BrdfPtr brdf = make_brdf(spec);
     std::string layout = a.str("--layout", brdf->anisotropic() ? "aniso" : "iso");
-    if (layout != "iso" && layout != "aniso") throw UsageError("--layout: iso or aniso");
-    if (layout == "iso" && brdf->anisotropic())
+    if (layout != "iso" && layout != "aniso" && layout != "halfdiff") throw UsageError("--layout: iso, aniso or halfdiff");
+    if (layout != "aniso" && brdf->anisotropic())
         throw UsageError("'" + spec + "' is anisotropic: an isotropic table would lose its azimuth (use --layout aniso)");
-    TableGeometry g = geometry_opts(a, layout == "aniso", layout == "aniso" ? 5.0 : 1.0);
+    if (layout != "halfdiff" && a.has("--nodes")) throw UsageError("--nodes applies to --layout halfdiff only");
+    if (layout == "halfdiff" && a.has("--fold"))
+        throw UsageError("--fold: a half/difference table is reciprocal by construction");
+    TableGeometry g = layout == "halfdiff" ? halfdiff_geometry(a, channels_opt(a))
+                                           : geometry_opts(a, layout == "aniso", layout == "aniso" ? 5.0 : 1.0);
     guard_size(g);
     const std::string out = a.output();
     auto table = build_table(tabulate(*brdf, g), build_opts(a, out, "tabulate: " + brdf->describe()));
@@ -195,15 +216,19 @@ int cmd_measured_like(Args& a) {
 }
 
 int cmd_convert(Args& a) {
+    const std::string layout = a.str("--layout", "iso");
+    if (layout != "iso" && layout != "halfdiff") throw UsageError("--layout: iso or halfdiff");
+    if (layout == "halfdiff" && (a.has("--step") || a.has("--fold")))
+        throw UsageError("--layout halfdiff stores MERL's own bins: no --step, and no --fold (reciprocal by construction)");
     auto merl = MerlBrdf::load_file(a.pos[0]);
     MerlConvertOptions o;
     o.step_deg = a.number("--step", 1.0);
     o.channels = channels_opt(a);
     o.nodata = parse_nodata_policy(a.str("--nodata", "fill"));
     o.fold = a.has("--fold");
-    guard_size(TableGeometry::isotropic(o.step_deg, o.channels));
+    if (layout == "iso") guard_size(TableGeometry::isotropic(o.step_deg, o.channels));
     const std::string out = a.output();
-    auto table = merl_to_table(*merl, o);
+    auto table = layout == "halfdiff" ? merl_to_halfdiff(*merl, o) : merl_to_table(*merl, o);
     save_table_file(*table, out);
     std::cout << merl->describe() << "\n";
     report_written(*table, out);
@@ -234,19 +259,32 @@ int cmd_resample(Args& a) {
     if (a.has("--fold") && a.has("--unfold")) throw UsageError("--fold and --unfold exclude each other");
     TableGeometry g;
     int ch = a.has("--channels") ? channels_opt(a) : sg.channels;
-    if (!a.has("--step")) throw UsageError("missing --step S");
-    double step = a.number("--step", 1.0);
-    if (sg.layout == TableLayout::Isotropic) {
-        if (a.has("--phi-step")) throw UsageError("--phi-step applies to anisotropic tables only");
-        g = TableGeometry::isotropic(step, ch);
+    const std::string src_layout = sg.layout == TableLayout::Isotropic ? "iso"
+                                   : sg.layout == TableLayout::Anisotropic ? "aniso" : "halfdiff";
+    const std::string layout = a.str("--layout", src_layout);
+    if (layout != "iso" && layout != "aniso" && layout != "halfdiff") throw UsageError("--layout: iso, aniso or halfdiff");
+    if ((layout == "aniso") != (src_layout == "aniso"))
+        throw UsageError("--layout: an anisotropic table resamples to the aniso layout only, and only it does");
+    if (layout == "halfdiff") {
+        if (a.has("--fold")) throw UsageError("--fold: a half/difference table is reciprocal by construction");
+        if (!a.has("--nodes")) throw UsageError("missing --nodes NH,ND,NP (--layout halfdiff)");
+        g = halfdiff_geometry(a, ch);
     } else {
-        g = TableGeometry::anisotropic(step, a.number("--phi-step", step), ch);
+        if (a.has("--nodes")) throw UsageError("--nodes applies to --layout halfdiff only");
+        if (!a.has("--step")) throw UsageError("missing --step S");
+        double step = a.number("--step", 1.0);
+        if (layout == "iso") {
+            if (a.has("--phi-step")) throw UsageError("--phi-step applies to anisotropic tables only");
+            g = TableGeometry::isotropic(step, ch);
+        } else {
+            g = TableGeometry::anisotropic(step, a.number("--phi-step", step), ch);
+        }
     }
     guard_size(g);
     Interp interp = parse_interp(a.str("--interp", "linear"));
     const std::string out = a.output();
     BuildOptions bo;
-    bo.fold = a.has("--fold") || (sg.folded && !a.has("--unfold"));
+    bo.fold = layout == "iso" && (a.has("--fold") || (sg.folded && !a.has("--unfold")));
     bo.name = out;
     bo.description = src->info().description + "; resampled (" + to_string(interp) + ") from " + sg.describe();
     bo.prior_nodata_filled = src->info().nodata_filled;
@@ -377,6 +415,8 @@ int cmd_check(Args& a) {
     const TableGeometry& g = t->geometry();
     if (g.folded) {
         std::cout << "reciprocity: exact (reciprocity-folded storage)\n";
+    } else if (g.layout == TableLayout::HalfDiff) {
+        std::cout << "reciprocity: exact (half/difference layout: swapping wi and wo adds 180 deg to phi_d, its period)\n";
     } else if (!r.recip.applicable) {
         std::cout << "reciprocity: not checked (theta_i and theta_r grids differ)\n";
     } else {
@@ -729,36 +769,44 @@ std::string models_text() {
 
 const std::vector<Command>& commands() {
     static const std::vector<Command> cmds = {
-        {"tabulate", "tabulate SPEC... -o OUT.brdf [--step 1] [--fold] [--channels 3] [--layout iso|aniso] [--phi-step S]",
+        {"tabulate", "tabulate SPEC... -o OUT.brdf [--step 1] [--fold] [--channels 3] [--layout iso|aniso|halfdiff] [--phi-step S] [--nodes NH,ND,NP]",
          "Sample an analytic model (a make_brdf spec, e.g. 'lambert rho=0.5') at every node.\n"
          "  --step S       node spacing in degrees (divides 90; default 1, anisotropic 5)\n"
          "  --fold         store theta_i <= theta_r only (reciprocity), averaging f(i,r) and f(r,i)\n"
          "  --channels N   1 (mean of R,G,B) or 3\n"
-         "  --layout L     iso (default for isotropic models) or aniso (4-D, absolute azimuths)\n"
-         "  --phi-step S   azimuth spacing of the anisotropic layout (divides 360; default --step)\n",
-         {"-o", "--step", "--channels", "--layout", "--phi-step", "--nodata"}, {"--fold"}, 1, -1, cmd_tabulate},
+         "  --layout L     iso (default for isotropic models), aniso (4-D, absolute azimuths) or\n"
+         "                 halfdiff (theta_h, theta_d, phi_d; nodes dense near the half vector:\n"
+         "                 narrow lobes, see brdf_data/README.md)\n"
+         "  --phi-step S   azimuth spacing of the anisotropic layout (divides 360; default --step)\n"
+         "  --nodes N,N,N  theta_h, theta_d, phi_d node counts of the halfdiff layout\n"
+         "                 (default 256,128,32: 12.6 MB in RGB; MERL's grid is 90,90,180)\n",
+         {"-o", "--step", "--channels", "--layout", "--phi-step", "--nodata", "--nodes"}, {"--fold"}, 1, -1, cmd_tabulate},
         {"measured-like", "measured-like SPEC... -o OUT.brdf [--noise 0.02] [--missing 0.001] [--seed 1] [--step 1] [--nodata fill|reject] [--fold]",
          "Simulate a gonioreflectometer: the model sampled at every node, each value times\n"
          "max(0, 1 + noise*N(0,1)), each cell missing (no data) with probability --missing,\n"
          "then the no-data policy (fill: from the nearest valid nodes along phi, then theta).\n"
          "Deterministic for a --seed. Measured data is not reciprocal: --fold symmetrises it.\n",
          {"-o", "--step", "--channels", "--noise", "--missing", "--seed", "--nodata"}, {"--fold"}, 1, -1, cmd_measured_like},
-        {"convert", "convert IN.binary -o OUT.brdf [--step 1] [--nodata fill|reject] [--fold] [--channels 3]",
+        {"convert", "convert IN.binary -o OUT.brdf [--layout iso|halfdiff] [--step 1] [--nodata fill|reject] [--fold] [--channels 3]",
          "Convert a MERL .binary (90x90x180 half/difference bins, scaled 1/1500, 1.15/1500,\n"
-         "1.66/1500) to an isotropic table: the reference bin lookup at every node.\n"
+         "1.66/1500) to a table.\n"
+         "  --layout iso      an isotropic table: the reference bin lookup at every node (default)\n"
+         "  --layout halfdiff MERL's own bins stored as the nodes of a half/difference table, no\n"
+         "                    resampling (no --step, no --fold); below-horizon bins are filled\n"
          "  --nodata fill    fill nodes whose bin has no data (default)\n"
          "  --nodata reject  fail on the first such node, naming the MERL sample's byte offset\n"
          "  --fold           store theta_i <= theta_r only (lossless: MERL is reciprocal)\n",
-         {"-o", "--step", "--channels", "--nodata"}, {"--fold"}, 1, 1, cmd_convert},
+         {"-o", "--step", "--channels", "--nodata", "--layout"}, {"--fold"}, 1, 1, cmd_convert},
         {"fill", "fill IN.brdf -o OUT.brdf [--fold]",
          "Fill the no-data cells (NaN or negative values) of a table with the format's rule\n"
          "(linear between the nearest valid nodes along phi, then theta_r, then theta_i; see\n"
          "brdf_data/README.md) and write it; the header counts the cells filled.\n",
          {"-o"}, {"--fold"}, 1, 1, cmd_fill},
-        {"resample", "resample IN.brdf -o OUT.brdf --step S [--phi-step S] [--interp linear|nearest] [--fold|--unfold] [--channels N]",
-         "Evaluate a table at the nodes of a new grid (same layout). Folding is kept unless\n"
-         "--unfold; --fold folds an unfolded table.\n",
-         {"-o", "--step", "--phi-step", "--interp", "--channels"}, {"--fold", "--unfold"}, 1, 1, cmd_resample},
+        {"resample", "resample IN.brdf -o OUT.brdf (--step S [--phi-step S] | --layout halfdiff --nodes NH,ND,NP) [--layout iso] [--interp linear|nearest] [--fold|--unfold] [--channels N]",
+         "Evaluate a table at the nodes of a new grid (the same layout unless --layout: iso and\n"
+         "halfdiff convert into each other; aniso stays aniso). Folding is kept unless --unfold;\n"
+         "--fold folds an unfolded isotropic table.\n",
+         {"-o", "--step", "--phi-step", "--interp", "--channels", "--layout", "--nodes"}, {"--fold", "--unfold"}, 1, 1, cmd_resample},
         {"info", "info FILE.brdf",
          "Print the header (geometry, checksum, description, no-data count), the memory a\n"
          "loaded table takes, and its directional albedo at a few theta_i.\n",

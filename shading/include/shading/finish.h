@@ -56,6 +56,9 @@ struct FinishModel {
     // table from the three cosines directly, without building a local frame.
     const BrdfTable* iso_table = nullptr;
     Interp iso_interp = Interp::Linear;
+    // Set instead of iso_table for a half/difference table (layout 3): read from the world
+    // vectors directly (BrdfTable::eval_halfdiff_dirs), with iso_interp.
+    const BrdfTable* halfdiff_table = nullptr;
     // Albedo of the model's Lambertian base (Brdf::lambert_base), set by make_finish_model.
     Rgb base{0.0};
     // Finish `samples N` (0: off, at most kMaxReflectionSamples): the model's glossy part,

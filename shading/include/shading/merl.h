@@ -95,4 +95,13 @@ struct MerlConvertOptions {
 // the table's angles (see NoDataPolicy); Reject throws naming the MERL sample's offset.
 std::unique_ptr<BrdfTable> merl_to_table(const MerlBrdf& merl, const MerlConvertOptions& opt);
 
+// MERL's own grid as a half/difference table (layout 3, table.h), without resampling: node
+// (i, j, k) holds bin (i, j, k), channel scales applied (float32 of raw x scale; 1 channel:
+// the mean of R, G, B). Bins without data (negative or NaN) follow opt.nodata for cells
+// inside the domain (Reject: TableError naming the MERL sample's byte offset; Fill: the
+// table's no-data rule); outside cells (a direction below the horizon, where MERL files
+// hold -1) are filled under either policy and not counted. opt.step_deg and opt.fold do not
+// apply (std::invalid_argument for fold). Dimensions below 2 are std::invalid_argument.
+std::unique_ptr<BrdfTable> merl_to_halfdiff(const MerlBrdf& merl, const MerlConvertOptions& opt);
+
 }  // namespace shading

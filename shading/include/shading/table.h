@@ -11,6 +11,21 @@
 //    phi = 180 is the plane of incidence on the mirror side (the specular peak).
 //  * Anisotropic layout: axes (theta_i, phi_i, theta_r, phi_r), absolute azimuths from
 //    the tangent (+x), n nodes on [0, 360) deg, step 360/n, periodic.
+//  * Half/difference layout (narrow lobes, MERL's own grid): axes (theta_h, theta_d,
+//    phi_d), Rusinkiewicz's angles of the pair (merl.h: to_half_diff). Nodes sit at the
+//    centres of MERL's bins: theta_h_i = ((i + 1/2) / n0)^2 * 90 deg (dense near the half
+//    vector), theta_d_j = (j + 1/2) * 90 / n1 deg, phi_d_k = (k + 1/2) * 180 / n2 deg,
+//    phi_d periodic with period 180 deg (reciprocity: swapping wi and wo adds 180 deg, so
+//    every lookup is reciprocal by construction). Interpolation is trilinear in
+//    (sqrt(theta_h), theta_d, phi_d); between theta = 0 and the first theta_h / theta_d node
+//    it runs towards a virtual pole node holding the row's mean over phi_d (phi_d is
+//    undefined at theta_h = 0 and at theta_d = 0), so lookups are continuous there while
+//    the stored values stay those of the file. Beyond the last node values are held.
+//    Cells whose node pair has a direction below the horizon ("outside" cells) are never
+//    looked up alone; they are filled by the no-data rule so corners next to the horizon
+//    interpolate towards their neighbours. The layout is never reciprocity-folded.
+//    Nearest lookups read the node of MERL's reference bin (merl.h), so a converted MERL
+//    file looked up with Interp::Nearest gives MerlBrdf::f exactly.
 //  * Storage order is row-major over the axes above with the channel index fastest.
 //  * Reciprocity-folded isotropic tables (geometry.folded) store only theta_i <= theta_r:
 //    the (theta_i, theta_r) pairs i <= r in row-major order (numpy.triu_indices order);
@@ -44,7 +59,7 @@ public:
 [[noreturn]] void throw_table_error(const std::string& name, uint64_t offset, const std::string& expected,
                                     const std::string& found);
 
-enum class TableLayout : uint32_t { Isotropic = 1, Anisotropic = 2 };
+enum class TableLayout : uint32_t { Isotropic = 1, Anisotropic = 2, HalfDiff = 3 };
 // Linear = trilinear (isotropic) / quadrilinear (anisotropic) in the angles, phi periodic
 // where the axis is periodic. Nearest = the nearest node (ties to the larger index).
 enum class Interp { Nearest, Linear };
@@ -72,12 +87,21 @@ struct TableGeometry {
     // throws std::invalid_argument otherwise.
     static TableGeometry isotropic(double step_deg = 1.0, int channels = 3, bool folded = false);
     static TableGeometry anisotropic(double theta_step_deg = 5.0, double phi_step_deg = 5.0, int channels = 3);
+    // Half/difference layout with n_h, n_d, n_p nodes (throws std::invalid_argument outside
+    // [2, kMaxHalfDiffTheta] / [2, kMaxHalfDiffPhi]). MERL's grid is (90, 90, 180).
+    static TableGeometry halfdiff(uint32_t n_h = 256, uint32_t n_d = 128, uint32_t n_p = 32, int channels = 3);
 
-    int axes() const { return layout == TableLayout::Isotropic ? 3 : 4; }
-    bool is_phi_axis(int axis) const;    // iso: axis 2; aniso: axes 1 and 3
-    bool is_periodic(int axis) const;    // aniso phi axes
+    int axes() const { return layout == TableLayout::Anisotropic ? 4 : 3; }
+    bool is_phi_axis(int axis) const;    // iso: axis 2; aniso: axes 1 and 3; halfdiff: axis 2
+    bool is_periodic(int axis) const;    // aniso phi axes, halfdiff phi_d
+    // Node spacing, degrees. Halfdiff: theta_h axis 90/n0 in sqrt(90 deg * theta_h) (the
+    // axis is uniform in sqrt(theta_h)), theta_d 90/n1, phi_d 180/n2.
     double step_deg(int axis) const;
     double axis_deg(int axis, uint32_t index) const;  // angle of a node, degrees
+    uint32_t max_nodes(int axis) const;  // the format's limit for the axis
+    // Halfdiff only: the node pair (phi_h = 0; wi, wo as merl.h's from_half_diff gives them)
+    // and whether both directions are above the horizon (false: an "outside" cell).
+    bool halfdiff_node_pair(const uint32_t idx[4], Vec3& wi, Vec3& wo) const;
     // The angle at which a model is sampled for a node (tabulate, and fit's comparison):
     // the node's angle, except the theta node at 90 deg, sampled half a step inside (a
     // model's f can diverge at grazing while f cos stays finite; see table.cpp).
@@ -91,7 +115,11 @@ struct TableGeometry {
     // Throws std::invalid_argument if the geometry is not one the table supports.
     void validate() const;
     std::string describe() const;  // "isotropic 91x91x181 (1 deg), 3 channels, reciprocity-folded"
+    const char* axis_name(int axis) const;  // "theta_i", "phi", "theta_h", ...
 };
+
+constexpr uint32_t kMaxHalfDiffTheta = 9000;  // theta_h, theta_d nodes (0.01 deg)
+constexpr uint32_t kMaxHalfDiffPhi = 18000;   // phi_d nodes
 
 struct TableInfo {
     std::string description;     // free text: where the data came from (shown by `brdftool info`)
@@ -117,6 +145,14 @@ public:
     Rgb eval_iso(double theta_i, double theta_r, double phi, Interp interp) const;
     // Any layout; isotropic tables use phi_r - phi_i.
     Rgb eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const;
+    // Half/difference tables (layout 3; other layouts: std::logic_error). By angle, radians:
+    // theta_h, theta_d clamped to [0, pi/2], phi_d any real (period pi).
+    Rgb eval_halfdiff(double theta_h, double theta_d, double phi_d, Interp interp) const;
+    // From unit vectors in any frame: n the normal, wi towards the light, wo towards the
+    // viewer, both above the surface (n.wi > 0, n.wo > 0; the caller tests). Three square
+    // roots, two atan2 and one acos, no frame: the renderer's per-light path (finish.cpp).
+    Rgb eval_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp) const;
+    bool halfdiff() const { return geom_.layout == TableLayout::HalfDiff; }
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
     float node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const;
@@ -129,8 +165,12 @@ public:
     // Directional albedo a(theta_i) = integral over the hemisphere of f cos(theta_r) dw_r,
     // computed at construction on a ~1 deg midpoint grid of the (interpolated) table with
     // exact cos*sin weights per theta_r band (so a constant table integrates exactly).
-    // One entry per theta_i node; anisotropic tables: mean over the phi_i nodes.
+    // One entry per theta_i node; anisotropic tables: mean over the phi_i nodes. Half/
+    // difference tables have no theta_i axis: entries every 2 deg (albedo_node_deg), each
+    // integrated over the half vector (dw_o = 4 cos(theta_d) dw_h) on the table's own
+    // sqrt(theta_h) spacing, so a narrow lobe is resolved (table_halfdiff.cpp).
     const std::vector<Rgb>& albedo_nodes() const { return albedo_; }
+    double albedo_node_deg(size_t k) const;  // theta_i of albedo_nodes()[k], degrees
     Rgb directional_albedo(double theta_i) const;  // radians; linear between nodes
     size_t bytes_used() const;
 
@@ -144,6 +184,16 @@ private:
     Rgb gather(const AxisPos pos[4], Interp interp) const;
     void average_poles();
     void compute_albedo();
+    // Half/difference layout (table_halfdiff.cpp).
+    struct HdPos {
+        int32_t i0, i1;  // i0 == -1: the virtual pole node (theta = 0) of the axis
+        double t;        // weight of i1
+    };
+    HdPos locate_hd(int axis, double x, Interp interp) const;  // x: fractional node index
+    Rgb gather_hd(const HdPos pos[3], Interp interp) const;
+    Rgb hd_lookup(double theta_h, double theta_d, double phi_d, Interp interp) const;
+    void init_halfdiff();
+    void compute_albedo_halfdiff();
 
     TableGeometry geom_;
     std::vector<float> values_;
@@ -152,6 +202,11 @@ private:
     std::vector<Rgb> albedo_;
     uint64_t stride_[4] = {0, 0, 0, 0};  // unfolded strides in floats
     double inv_step_[4] = {0, 0, 0, 0};  // nodes per degree
+    // Half/difference layout: mean over phi_d of each theta_h = first-node row (per theta_d
+    // node) and of each theta_d = first-node row (per theta_h node), channel fastest: the
+    // virtual pole nodes; pole_hd_ both at once (the (0, 0) row's mean).
+    std::vector<float> pole_h_, pole_d_;
+    float pole_hd_[3] = {0, 0, 0};
 };
 
 // ---------------------------------------------------------------- building tables
@@ -180,6 +235,8 @@ struct BuildOptions {
 // Applies the no-data policy in place; returns the number of cells that had no data.
 // Reject: TableError "NAME: offset N: ..." where N is the byte offset of the value in the
 // unfolded float32 payload. +-Inf is never "no data": always an error.
+// Half/difference grids: outside cells (a direction below the horizon) are filled under
+// either policy and not counted: they are geometry, not missing measurements.
 uint64_t apply_nodata_policy(TableGrid& grid, NoDataPolicy policy, const std::string& name);
 // The full grid of a payload laid out as `g` says (a folded payload, theta_i <= theta_r only,
 // is mirrored into both halves).
@@ -202,11 +259,15 @@ std::unique_ptr<BrdfTable> build_table(TableGrid grid, const BuildOptions& opt);
 TableGrid unfold(const BrdfTable& table);
 
 // Samples a model at every node: isotropic nodes use wi at azimuth 0 and wo at azimuth phi;
-// anisotropic nodes use both absolute azimuths. One channel stores the RGB mean.
+// anisotropic nodes use both absolute azimuths; half/difference nodes use the node pair
+// (TableGeometry::halfdiff_node_pair), outside cells are left NaN for the no-data fill.
+// One channel stores the RGB mean.
 // Non-finite or negative model values throw std::runtime_error naming the node.
 TableGrid tabulate(const Brdf& brdf, const TableGeometry& g);
 
-// Evaluates `src` (with `interp`) at the nodes of `g`.
+// Evaluates `src` (with `interp`) at the nodes of `g`. Between the isotropic and the
+// half/difference layouts in either direction (through the node's direction pair; outside
+// half/difference cells are left NaN for the fill); an anisotropic source only to itself.
 TableGrid resample(const BrdfTable& src, const TableGeometry& g, Interp interp = Interp::Linear);
 
 // Gonioreflectometer simulation on a tabulated grid, deterministic for a seed:
