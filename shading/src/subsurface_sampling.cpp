@@ -1,0 +1,403 @@
+// Sampling an object's surface for a subsurface finish: lines across the bounding box,
+// refined where the transmitted irradiance is not linear between neighbouring samples
+// (sample_surface in subsurface.h). The renderer's side is a SurfaceSampler; each parallel
+// stage (lines, irradiance) runs through the ParallelFor the caller gives (Subsurface::cloud:
+// every thread that waits for this cloud), and every result lands in a slot fixed before the
+// stage starts, so the cloud is the same whichever thread computed what.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+
+#include "shading/subsurface.h"
+
+namespace shading {
+
+namespace {
+
+// A family's share of a surface point falls smoothly from 1 (its lines meet the surface
+// head-on, |n_axis| = max |n|) to 0 at |n_axis| = kGrazing max |n|: its samples are then at
+// most 1/(kGrazing/sqrt 3) ~ 3.5 spacings apart on the surface, never the sparse rings of
+// crossings that lines grazing a curved surface leave.
+constexpr double kGrazing = 0.5;
+// Marks spread to every sample of the level within this many spacings: a lookup then finds
+// the finer samples all around it out to the window's ramp (3 h) before the near field of the
+// coarser level (3 h_coarse = 6 h) can reach the feature that was marked.
+constexpr double kDilate = 4.5;
+// Crossings of neighbouring lines belong to the same surface when their depths differ by less
+// than this many spacings (a surface at the steepest slope a family keeps is ~3.3 h apart).
+constexpr double kDepthSlack = 4.0;
+// Level-0 lines at most (a sample_spacing far below the object's size would never finish).
+constexpr double kMaxLines = 5e7;
+// Line indices are packed in 28 bits per axis (line_key).
+constexpr std::int64_t kMaxIndex = std::int64_t(1) << 28;
+
+double smooth01(double t) {
+    if (t <= 0) return 0;
+    if (t >= 1) return 1;
+    return t * t * (3 - 2 * t);
+}
+
+// The share of family `axis` at a surface point of unit normal n: a partition of unity over
+// the three families (the family of the largest |n_a| has weight 1 before normalising).
+double family_weight(const Vec3& n, int axis) {
+    const double a[3] = {std::fabs(n.x), std::fabs(n.y), std::fabs(n.z)};
+    const double m = std::max({a[0], a[1], a[2]});
+    if (!(m > 0)) return 0;
+    double w[3], sum = 0;
+    for (int k = 0; k < 3; ++k) sum += (w[k] = smooth01((a[k] / m - kGrazing) / (1 - kGrazing)));
+    return w[axis] / sum;
+}
+
+std::uint64_t line_key(int level, int axis, std::int64_t i, std::int64_t j) {
+    return (std::uint64_t(level) << 58) | (std::uint64_t(axis) << 56) | (std::uint64_t(i) << 28) | std::uint64_t(j);
+}
+
+struct Line {
+    int axis = 0, level = 0;
+    std::int64_t i = 0, j = 0;
+    std::size_t first = 0;  // its crossings: hits_[first, first + count), sorted by depth t
+    int count = 0;
+};
+
+struct Sample {
+    int line = 0, layer = 0, level = 0;
+    SurfacePoint pt;
+    double e = 0;  // E_t summed over the channels
+    bool active = true;
+};
+
+class Sampling {
+public:
+    Sampling(const ParallelFor& parallel, const Vec3& lo, const Vec3& hi, double h0) : parallel_(parallel), h0_(h0) {
+        for (int k = 0; k < 64; ++k) spacing_[k] = std::ldexp(h0, -k);
+        lo_[0] = lo.x, lo_[1] = lo.y, lo_[2] = lo.z;
+        const double hi3[3] = {hi.x, hi.y, hi.z};
+        for (int a = 0; a < 3; ++a) len_[a] = hi3[a] - lo_[a];
+    }
+
+    std::vector<SurfacePoint> run(const SamplingPlan& plan, CloudReport* report);
+
+private:
+    double spacing(int level) const { return spacing_[level]; }
+    const SurfaceSampler::Hit& hit(const Line& L, int m) const { return hits_[L.first + m]; }
+    int& sample_of(const Line& L, int m) { return hit_sample_[L.first + m]; }
+    int sample_of(const Line& L, int m) const { return hit_sample_[L.first + m]; }
+    Vec3 origin(const Line& L) const;
+    int find(int level, int axis, std::int64_t i, std::int64_t j) const;
+    void add_line(int level, int axis, std::int64_t i, std::int64_t j);
+    void shoot(std::size_t first);
+    void add_sample(int line, int layer);
+    void light(std::size_t first);
+    bool neighbour(const Sample& s, int di, int dj, double* e) const;
+
+    const ParallelFor& parallel_;
+    double lo_[3], len_[3], h0_;
+    std::int64_t n0_[3][2] = {};  // level-0 grid size of each family (along b, c)
+    std::size_t base_[4] = {};    // level-0 lines of family a start at base_[a]
+    double spacing_[64];
+    std::vector<Line> lines_;
+    std::vector<SurfaceSampler::Hit> hits_;
+    std::vector<int> hit_sample_;  // per crossing: its sample, -1 if none (grazing family)
+    std::unordered_map<std::uint64_t, int> refined_;  // lines of levels >= 1
+    std::vector<Sample> samples_;
+    double e_max_ = 0;
+};
+
+Vec3 Sampling::origin(const Line& L) const {
+    const int a = L.axis, b = (a + 1) % 3, c = (a + 2) % 3;
+    const double h = spacing(L.level);
+    double o[3];
+    o[a] = lo_[a] - 1.0 - 0.01 * len_[a];
+    o[b] = lo_[b] + (double(L.i) + 0.5) * h;
+    o[c] = lo_[c] + (double(L.j) + 0.5) * h;
+    return Vec3(o[0], o[1], o[2]);
+}
+
+int Sampling::find(int level, int axis, std::int64_t i, std::int64_t j) const {
+    const std::int64_t scale = std::int64_t(1) << level;
+    if (i < 0 || j < 0 || i >= n0_[axis][0] * scale || j >= n0_[axis][1] * scale) return -1;
+    if (level == 0) return int(base_[axis] + std::size_t(i * n0_[axis][1] + j));
+    auto it = refined_.find(line_key(level, axis, i, j));
+    return it == refined_.end() ? -1 : it->second;
+}
+
+void Sampling::add_line(int level, int axis, std::int64_t i, std::int64_t j) {
+    if (level > 0) refined_.emplace(line_key(level, axis, i, j), int(lines_.size()));
+    Line L;
+    L.axis = axis;
+    L.level = level;
+    L.i = i;
+    L.j = j;
+    lines_.push_back(std::move(L));
+}
+
+void Sampling::shoot(std::size_t first) {
+    // Chunks of lines, each collecting its crossings in a buffer of its own; the buffers are
+    // then appended in chunk order, so the layout does not depend on who shot what.
+    constexpr std::size_t kChunk = 256;
+    const std::size_t n = lines_.size() - first, chunks = (n + kChunk - 1) / kChunk;
+    std::vector<std::vector<SurfaceSampler::Hit>> buffers(chunks);
+    parallel_(chunks, [&](std::size_t c, SurfaceSampler& s) {
+        std::vector<SurfaceSampler::Hit>& buf = buffers[c];
+        buf.reserve(2 * kChunk);
+        for (std::size_t li = first + c * kChunk; li < std::min(lines_.size(), first + (c + 1) * kChunk); ++li) {
+            Line& L = lines_[li];
+            const std::size_t start = buf.size();
+            s.line_hits(L.axis, origin(L), &buf);
+            for (std::size_t k = start; k < buf.size(); ++k) buf[k].n = normalize(buf[k].n);
+            std::sort(buf.begin() + std::ptrdiff_t(start), buf.end(),
+                      [](const SurfaceSampler::Hit& a, const SurfaceSampler::Hit& b) { return a.t < b.t; });
+            L.first = start;  // within the buffer, for now
+            L.count = int(buf.size() - start);
+        }
+    });
+    std::size_t total = hits_.size();
+    for (const auto& b : buffers) total += b.size();
+    hits_.reserve(total);
+    hit_sample_.reserve(total);
+    for (std::size_t c = 0; c < chunks; ++c) {
+        const std::size_t base = hits_.size();
+        for (std::size_t li = first + c * kChunk; li < std::min(lines_.size(), first + (c + 1) * kChunk); ++li)
+            lines_[li].first += base;
+        hits_.insert(hits_.end(), buffers[c].begin(), buffers[c].end());
+        std::vector<SurfaceSampler::Hit>().swap(buffers[c]);
+    }
+    hit_sample_.resize(hits_.size(), -1);
+}
+
+void Sampling::add_sample(int line, int layer) {
+    const Line& L = lines_[line];
+    const SurfaceSampler::Hit& h0 = hit(L, layer);
+    const double na = std::fabs(L.axis == 0 ? h0.n.x : (L.axis == 1 ? h0.n.y : h0.n.z));
+    const double w = family_weight(h0.n, L.axis);
+    if (!(w > 0) || !(na > 0)) return;
+    const double h = spacing(L.level);
+    Sample s;
+    s.line = line;
+    s.layer = layer;
+    s.level = L.level;
+    s.pt.p = h0.p;
+    s.pt.n = h0.n;
+    s.pt.area = w * h * h / na;
+    s.pt.spacing = h;
+    sample_of(L, layer) = int(samples_.size());
+    samples_.push_back(s);
+}
+
+void Sampling::light(std::size_t first) {
+    parallel_(samples_.size() - first, [this, first](std::size_t k, SurfaceSampler& s) {
+        Sample& S = samples_[first + k];
+        S.pt.irradiance = s.irradiance(S.pt.p, S.pt.n);
+        S.e = S.pt.irradiance.r + S.pt.irradiance.g + S.pt.irradiance.b;
+    });
+    for (std::size_t k = first; k < samples_.size(); ++k) e_max_ = std::max(e_max_, samples_[k].e);
+}
+
+// E_t summed over channels at the crossing of the neighbouring line (di, dj) of s's own level
+// that lies on the same surface as s; false if there is none.
+bool Sampling::neighbour(const Sample& s, int di, int dj, double* e) const {
+    const Line& L = lines_[s.line];
+    const int li = find(L.level, L.axis, L.i + di, L.j + dj);
+    if (li < 0) return false;
+    const Line& N = lines_[li];
+    const double t = hit(L, s.layer).t;
+    double best = kDepthSlack * spacing(L.level);
+    int found = -1;
+    for (int m = 0; m < N.count; ++m) {
+        const int q = sample_of(N, m);
+        if (q < 0) continue;
+        const double dt = std::fabs(hit(N, m).t - t);
+        if (dt <= best && dot(hit(N, m).n, s.pt.n) > 0.5) {
+            best = dt;
+            found = q;
+        }
+    }
+    if (found < 0) return false;
+    *e = samples_[found].e;
+    return true;
+}
+
+std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* report) {
+    int levels = plan.levels;
+    const double tolerance = plan.tolerance, mfp = plan.mean_free_path;
+    const std::size_t max_points = plan.max_points;
+    report->view_limited = plan.view.kind != ViewVolume::Kind::Everywhere;
+    // Level 0: three families of lines at spacing h0 across the box.
+    double total = 0;
+    for (int a = 0; a < 3; ++a) {
+        const int b = (a + 1) % 3, c = (a + 2) % 3;
+        n0_[a][0] = std::max<std::int64_t>(1, std::int64_t(std::ceil(len_[b] / h0_)));
+        n0_[a][1] = std::max<std::int64_t>(1, std::int64_t(std::ceil(len_[c] / h0_)));
+        total += double(n0_[a][0]) * double(n0_[a][1]);
+    }
+    if (!(total <= kMaxLines))
+        throw std::invalid_argument("dipole: a sample spacing of " + std::to_string(h0_) + " units needs " +
+                                    std::to_string(total) + " sample lines across an object " +
+                                    std::to_string(std::max({len_[0], len_[1], len_[2]})) +
+                                    " units wide (at most 5e7): give a larger sample_spacing");
+    // Refined line indices must fit line_key's 28 bits.
+    for (int a = 0; a < 3; ++a)
+        while (levels > 0 && std::max(n0_[a][0], n0_[a][1]) * (std::int64_t(1) << levels) >= kMaxIndex) --levels;
+    lines_.reserve(std::size_t(total));
+    for (int a = 0; a < 3; ++a) {
+        base_[a] = lines_.size();
+        for (std::int64_t i = 0; i < n0_[a][0]; ++i)
+            for (std::int64_t j = 0; j < n0_[a][1]; ++j) add_line(0, a, i, j);
+    }
+    base_[3] = lines_.size();
+    shoot(0);
+
+    // Geometry thinner than the mean free path: pairs of crossings (in, out) closer than mfp.
+    std::size_t segments = 0, thin = 0;
+    for (const Line& L : lines_)
+        for (int k = 1; k < L.count; k += 2) {
+            ++segments;
+            if (hit(L, k).t - hit(L, k - 1).t < mfp) ++thin;
+        }
+    report->thin = segments > 0 && thin * 10 > segments;
+
+    samples_.reserve(hits_.size() + hits_.size() / 2);
+    for (std::size_t li = 0; li < lines_.size(); ++li)
+        for (int m = 0; m < lines_[li].count; ++m) add_sample(int(li), m);
+    light(0);
+
+    // Refinement, level by level.
+    std::size_t level_first = 0;
+    for (int k = 0; k < levels; ++k) {
+        const std::size_t level_end = samples_.size();
+        if (level_end == level_first || (k >= plan.view_levels && !(e_max_ > 0))) break;
+        const double h = spacing(k), threshold = 2.0 * tolerance * e_max_;
+        std::vector<char> mark(level_end - level_first, 0);
+        std::vector<std::size_t> seeds;
+        // The first view_levels levels: every sample the view can see within reach (the base
+        // spacing where the image is, coarser elsewhere).
+        for (std::size_t si = level_first; si < level_end && k < plan.view_levels; ++si)
+            if (samples_[si].active && plan.view.near(samples_[si].pt.p, plan.reach + h)) mark[si - level_first] = 1;
+        // Then: |E(-1) - 2 E + E(+1)| / 2 (the departure from the linear interpolation of the
+        // two neighbours) above tolerance x max E_t, along either grid direction.
+        for (std::size_t si = level_first; si < level_end && k >= plan.view_levels; ++si) {
+            const Sample& s = samples_[si];
+            if (!s.active) continue;
+            for (int dir = 0; dir < 2; ++dir) {
+                double ep, em;
+                if (neighbour(s, dir == 0, dir == 1, &ep) && neighbour(s, -(dir == 0), -(dir == 1), &em) &&
+                    std::fabs(ep - 2 * s.e + em) > threshold) {
+                    if (plan.view.near(s.pt.p, plan.reach)) {
+                        mark[si - level_first] = 1;
+                        seeds.push_back(si);
+                    }
+                    break;
+                }
+            }
+        }
+        if (seeds.empty() && k >= plan.view_levels) break;
+        // Widen: every sample of this level on the same surface within kDilate spacings.
+        const int r = int(std::floor(kDilate));
+        for (std::size_t si : seeds) {
+            const Sample& s = samples_[si];
+            const Line& L = lines_[s.line];
+            const double t = hit(L, s.layer).t;
+            for (int di = -r; di <= r; ++di)
+                for (int dj = -r; dj <= r; ++dj) {
+                    if (di * di + dj * dj > kDilate * kDilate) continue;
+                    const int li = find(k, L.axis, L.i + di, L.j + dj);
+                    if (li < 0) continue;
+                    const Line& N = lines_[li];
+                    for (int m = 0; m < N.count; ++m) {
+                        const int q = sample_of(N, m);
+                        if (q < 0 || !samples_[q].active || dot(hit(N, m).n, s.pt.n) <= 0) continue;
+                        if (std::fabs(hit(N, m).t - t) <= (kDilate + 1) * kDepthSlack * h) mark[q - level_first] = 1;
+                    }
+                }
+        }
+        // The lines to split and, per line, which of its crossings (layers) to replace.
+        std::vector<int> parents;
+        std::unordered_map<int, std::vector<int>> layers;
+        std::size_t marked = 0;
+        for (std::size_t si = level_first; si < level_end; ++si) {
+            if (!mark[si - level_first]) continue;
+            ++marked;
+            auto& v = layers[samples_[si].line];
+            if (v.empty()) parents.push_back(samples_[si].line);
+            v.push_back(samples_[si].layer);
+        }
+        std::size_t active = 0;
+        for (const Sample& s : samples_) active += s.active;
+        if (active + 3 * marked > max_points) {
+            report->capped = true;
+            break;
+        }
+        const std::size_t first_line = lines_.size();
+        lines_.reserve(lines_.size() + 4 * parents.size());
+        for (int p : parents) {
+            const int axis = lines_[p].axis;
+            const std::int64_t i = lines_[p].i, j = lines_[p].j;
+            for (int d = 0; d < 4; ++d) add_line(k + 1, axis, 2 * i + (d & 1), 2 * j + (d >> 1));
+        }
+        shoot(first_line);
+        const std::size_t first_sample = samples_.size();
+        samples_.reserve(samples_.size() + 4 * marked);
+        for (std::size_t pi = 0; pi < parents.size(); ++pi) {
+            const int p = parents[pi];
+            const int c0 = int(first_line + 4 * pi);
+            // Split only where the four sub-lines cross the surface as often as the parent
+            // line does (the k-th crossing is then the same sheet of surface); silhouettes and
+            // other changes of topology keep the parent's sample.
+            bool same = true;
+            for (int d = 0; d < 4; ++d) same = same && lines_[c0 + d].count == lines_[p].count;
+            if (!same) continue;
+            for (int m : layers[p]) {
+                samples_[sample_of(lines_[p], m)].active = false;
+                for (int d = 0; d < 4; ++d) add_sample(c0 + d, m);
+            }
+        }
+        if (samples_.size() == first_sample) break;
+        light(first_sample);
+        report->levels = k + 1;
+        report->refined += samples_.size() - first_sample;
+        level_first = first_sample;
+    }
+
+    std::vector<SurfacePoint> out;
+    std::size_t n = 0;
+    for (const Sample& s : samples_) n += s.active;
+    out.reserve(n);
+    for (const Sample& s : samples_)
+        if (s.active) out.push_back(s.pt);
+    return out;
+}
+
+}  // namespace
+
+bool ViewVolume::near(const Vec3& p, double reach) const {
+    if (kind == Kind::Everywhere) return true;
+    // p - location = a direction + b right + c up (Cramer's rule).
+    const Vec3 d = p - location;
+    const double det = dot(direction, cross(right, up));
+    if (!(std::fabs(det) > 0) || !std::isfinite(det)) return true;
+    const double a = dot(d, cross(right, up)) / det, b = dot(direction, cross(d, up)) / det,
+                 c = dot(direction, cross(right, d)) / det;
+    const double slack = reach + lens, lr = length(right), lu = length(up), ld = length(direction);
+    if (!(lr > 0) || !(lu > 0) || !(ld > 0)) return true;
+    if (kind == Kind::Orthographic)
+        return a * ld >= -slack && std::fabs(b) <= 0.5 + slack / lr && std::fabs(c) <= 0.5 + slack / lu;
+    // Perspective: p is at depth a (in units of direction) and image position (b/a, c/a); a
+    // shift of `slack` at that depth moves it by slack / (a |right|) across the image.
+    if (a * ld <= slack) return length(d) <= slack + lens || a > 0;
+    return std::fabs(b / a) <= 0.5 + slack / (a * lr) && std::fabs(c / a) <= 0.5 + slack / (a * lu);
+}
+
+std::vector<SurfacePoint> sample_surface(const ParallelFor& parallel, const SamplingPlan& plan, CloudReport* report) {
+    const double h0 = plan.h0;
+    const Vec3 lo = plan.lo, hi = plan.hi;
+    if (!(h0 > 0) || !std::isfinite(h0)) throw std::invalid_argument("sample_surface: spacing must be > 0");
+    report->extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+    report->centre = (lo + hi) * 0.5;
+    Sampling s(parallel, lo, hi, h0);
+    return s.run(plan, report);
+}
+
+}  // namespace shading
