@@ -346,14 +346,12 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, double spacing, const R
     : spacing_(spacing), points_(std::move(points)) {
     for (SurfacePoint& p : points_) p.spacing = spacing;
     levels_.push_back({spacing, near});
-    if (!points_.empty()) {
-        nodes_.reserve(points_.size() / 2 + 1);
-        build_tree();
-    }
+    if (!points_.empty()) build_tree(nullptr);
     finish();
 }
 
-PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near) : points_(std::move(points)) {
+PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, const ParallelFor* parallel)
+    : points_(std::move(points)) {
     double coarsest = 0, finest = kInf;
     for (const SurfacePoint& p : points_) {
         if (!(p.spacing > 0) || !std::isfinite(p.spacing)) throw std::invalid_argument("PointCloud: every point needs a spacing > 0");
@@ -361,10 +359,7 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near) : p
         finest = std::min(finest, p.spacing);
     }
     spacing_ = coarsest > 0 ? coarsest : 1.0;
-    if (!points_.empty()) {
-        nodes_.reserve(points_.size() / 2 + 1);
-        build_tree();
-    }
+    if (!points_.empty()) build_tree(parallel);
     if (points_.empty() || finest == coarsest) {
         levels_.push_back({spacing_, near(spacing_)});
         finish();
@@ -394,27 +389,41 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near) : p
             cell[c] = b;
         }
     }
+    std::vector<int> leaves;
+    for (std::size_t k = 0; k < nodes_.size(); ++k)
+        if (nodes_[k].child < 0) leaves.push_back(int(k));
+    std::vector<double> leaf_h(leaves.size());
+    auto settle = [&](std::size_t c, SurfaceSampler*) {
+        for (std::size_t l = 64 * c; l < std::min(leaves.size(), 64 * (c + 1)); ++l) {
+            const int leaf = leaves[l];
+            const Node& nd = nodes_[leaf];
+            double H = 0;
+            for (int i = nd.first; i < nd.first + nd.count; ++i) H = std::max(H, points_[i].spacing);
+            while (H < coarsest) {
+                const double r = 3.0 * H;
+                int start = leaf;
+                auto holds = [&](int k) {
+                    const std::array<double, 6>& b = cell[k];
+                    for (int a = 0; a < 3; ++a)
+                        if (!(b[a] <= nd.lo[a] - r && nd.hi[a] + r < b[3 + a])) return false;
+                    return true;
+                };
+                while (parent[start] >= 0 && !holds(start)) start = parent[start];
+                const double m = max_spacing_within(start, nd.lo, nd.hi, r, H);
+                if (!(m > H)) break;
+                H = m;
+            }
+            leaf_h[l] = H;
+        }
+    };
+    const std::size_t chunks = (leaves.size() + 63) / 64;
+    if (parallel) (*parallel)(chunks, [&](std::size_t c, SurfaceSampler& s) { settle(c, &s); });
+    else for (std::size_t c = 0; c < chunks; ++c) settle(c, nullptr);
     std::vector<double> distinct;
     std::vector<double> lookup(points_.size());
-    for (std::size_t leaf = 0; leaf < nodes_.size(); ++leaf) {
-        const Node& nd = nodes_[leaf];
-        if (nd.child >= 0) continue;
-        double H = 0;
-        for (int i = nd.first; i < nd.first + nd.count; ++i) H = std::max(H, points_[i].spacing);
-        while (H < coarsest) {
-            const double r = 3.0 * H;
-            int start = int(leaf);
-            auto holds = [&](int k) {
-                const std::array<double, 6>& b = cell[k];
-                for (int a = 0; a < 3; ++a)
-                    if (!(b[a] <= nd.lo[a] - r && nd.hi[a] + r < b[3 + a])) return false;
-                return true;
-            };
-            while (parent[start] >= 0 && !holds(start)) start = parent[start];
-            const double m = max_spacing_within(start, nd.lo, nd.hi, r, H);
-            if (!(m > H)) break;
-            H = m;
-        }
+    for (std::size_t l = 0; l < leaves.size(); ++l) {
+        const Node& nd = nodes_[leaves[l]];
+        const double H = leaf_h[l];
         for (int i = nd.first; i < nd.first + nd.count; ++i) lookup[i] = H;
         if (std::find(distinct.begin(), distinct.end(), H) == distinct.end()) distinct.push_back(H);
     }
@@ -427,62 +436,134 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near) : p
     finish();
 }
 
-void PointCloud::build_tree() {
-    nodes_.reserve(points_.size() / 2 + 1);
-    aggs_.reserve(points_.size() / 2 + 1);
-    aux_.reserve(points_.size() / 2 + 1);
-    merge_.reserve(points_.size() / 2 + 1);
-    nodes_.emplace_back();
-    aggs_.emplace_back();
-    aux_.emplace_back();
-    merge_.emplace_back();
-    build(0, 0, int(points_.size()), 0);
-    std::vector<Merge>().swap(merge_);
+struct PointCloud::Tree {
+    std::vector<Node> nodes;
+    std::vector<Agg> aggs;
+    std::vector<Aux> aux;
+    std::vector<Merge> merge;
+    int grow(int n) {
+        const int at = int(nodes.size());
+        nodes.resize(at + n);
+        aggs.resize(at + n);
+        aux.resize(at + n);
+        merge.resize(at + n);
+        return at;
+    }
+};
+
+// The root splits here; its (at most 8) subtrees build in parallel, each into a tree of its
+// own, and are spliced in behind the root and its children in octant order: the same tree for
+// any number of threads.
+void PointCloud::build_tree(const ParallelFor* parallel) {
+    Tree t;
+    t.grow(1);
+    const int n_points = int(points_.size());
+    int ranges[8][3];
+    const int n = split(t, 0, 0, n_points, 0, ranges);
+    if (n > 1) {
+        std::vector<Tree> sub(n);
+        auto one = [&](std::size_t k) {
+            sub[k].grow(1);
+            build(sub[k], 0, ranges[k][0], ranges[k][1], 1);
+        };
+        if (parallel) (*parallel)(std::size_t(n), [&](std::size_t k, SurfaceSampler&) { one(k); });
+        else for (int k = 0; k < n; ++k) one(std::size_t(k));
+        std::size_t total = 1 + n;
+        for (const Tree& s : sub) total += s.nodes.size() - 1;
+        t.nodes.reserve(total);
+        t.aggs.reserve(total);
+        t.aux.reserve(total);
+        t.merge.reserve(total);
+        t.grow(n);
+        t.nodes[0].child = 1;
+        t.nodes[0].children = std::int16_t(n);
+        int base = 1 + n;  // where subtree k's node 1 goes
+        for (int k = 0; k < n; ++k) {
+            const Tree& s = sub[k];
+            const int shift = base - 1;  // local j >= 1 -> base + j - 1
+            auto place = [&](int to, int from) {
+                t.nodes[to] = s.nodes[from];
+                if (t.nodes[to].child >= 0) t.nodes[to].child += shift;
+                t.aggs[to] = s.aggs[from];
+                t.aux[to] = s.aux[from];
+                t.merge[to] = s.merge[from];
+            };
+            place(1 + k, 0);
+            t.nodes[1 + k].octant = std::uint8_t(ranges[k][2]);
+            const int at = t.grow(int(s.nodes.size()) - 1);
+            for (int j = 1; j < int(s.nodes.size()); ++j) place(at + j - 1, j);
+            base += int(s.nodes.size()) - 1;
+        }
+    }
+    aggregate(t, 0, 0, n_points, n);
+    nodes_ = std::move(t.nodes);
+    aggs_ = std::move(t.aggs);
+    aux_ = std::move(t.aux);
 }
 
 // Bounds top-down (the split needs them), aggregates bottom-up: a leaf's from its points, a
 // parent's by merging its children's (weights, means and covariances, the parallel-axis rule),
 // so each point is read O(1) times for the aggregates whatever the depth.
-void PointCloud::build(int index, int first, int count, int depth) {
+void PointCloud::build(Tree& t, int index, int first, int count, int depth) {
+    int ranges[8][3];
+    const int n = split(t, index, first, count, depth, ranges);
+    if (n > 1) {
+        const int child = t.grow(n);
+        t.nodes[index].child = child;
+        t.nodes[index].children = std::int16_t(n);
+        for (int k = 0; k < n; ++k) {
+            t.nodes[child + k].octant = std::uint8_t(ranges[k][2]);
+            build(t, child + k, ranges[k][0], ranges[k][1], depth + 1);
+        }
+    }
+    aggregate(t, index, first, count, n);
+}
+
+// The node's bounds, and its points partitioned in place into the non-empty octants about the
+// centre of the bounds: ranges (first, count, octant), how many (<= 1: a leaf).
+int PointCloud::split(Tree& t, int index, int first, int count, int depth, int ranges[8][3]) {
     Vec3 lo = points_[first].p, hi = lo;
     for (int i = first + 1; i < first + count; ++i) {
         const Vec3& p = points_[i].p;
         lo = Vec3(std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z));
         hi = Vec3(std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z));
     }
-    Node& nd = nodes_[index];
+    Node& nd = t.nodes[index];
     nd.lo[0] = round_down(lo.x), nd.lo[1] = round_down(lo.y), nd.lo[2] = round_down(lo.z);
     nd.hi[0] = round_up(hi.x), nd.hi[1] = round_up(hi.y), nd.hi[2] = round_up(hi.z);
     const Vec3 span = hi - lo;
     nd.diag2 = round_up(dot(span, span));
     nd.first = first;
     nd.count = count;
-    aux_[index].split = (lo + hi) * 0.5;
-
-    int ranges[8][3], n = 0;
-    if (count > kLeafSize && depth < kMaxDepth && dot(span, span) > 0) {
-        // Split into octants about the box centre (in place), keep the non-empty ones.
-        const Vec3 c = aux_[index].split;
-        auto begin = points_.begin() + first, end = begin + count;
-        auto mz = std::partition(begin, end, [&](const SurfacePoint& s) { return s.p.z < c.z; });
-        auto my0 = std::partition(begin, mz, [&](const SurfacePoint& s) { return s.p.y < c.y; });
-        auto my1 = std::partition(mz, end, [&](const SurfacePoint& s) { return s.p.y < c.y; });
-        auto split_x = [&](std::vector<SurfacePoint>::iterator a, std::vector<SurfacePoint>::iterator b) {
-            return std::partition(a, b, [&](const SurfacePoint& s) { return s.p.x < c.x; });
-        };
-        auto mx0 = split_x(begin, my0), mx1 = split_x(my0, mz), mx2 = split_x(mz, my1), mx3 = split_x(my1, end);
-        // Range k holds octant k: bit 0 set for x >= c.x, bit 1 for y, bit 2 for z.
-        const std::vector<SurfacePoint>::iterator bounds[9] = {begin, mx0, my0, mx1, mz, mx2, my1, mx3, end};
-        for (int k = 0; k < 8; ++k) {
-            int a = int(bounds[k] - points_.begin()), b = int(bounds[k + 1] - points_.begin());
-            if (b > a) {
-                ranges[n][0] = a;
-                ranges[n][1] = b - a;
-                ranges[n][2] = k;
-                ++n;
-            }
+    t.aux[index].split = (lo + hi) * 0.5;
+    t.aggs[index].centre = lo;  // (the unlit, arealess fallback; aggregate() sets the real one)
+    int n = 0;
+    if (count <= kLeafSize || depth >= kMaxDepth || !(dot(span, span) > 0)) return 0;
+    const Vec3 c = t.aux[index].split;
+    auto begin = points_.begin() + first, end = begin + count;
+    auto mz = std::partition(begin, end, [&](const SurfacePoint& s) { return s.p.z < c.z; });
+    auto my0 = std::partition(begin, mz, [&](const SurfacePoint& s) { return s.p.y < c.y; });
+    auto my1 = std::partition(mz, end, [&](const SurfacePoint& s) { return s.p.y < c.y; });
+    auto split_x = [&](std::vector<SurfacePoint>::iterator a, std::vector<SurfacePoint>::iterator b) {
+        return std::partition(a, b, [&](const SurfacePoint& s) { return s.p.x < c.x; });
+    };
+    auto mx0 = split_x(begin, my0), mx1 = split_x(my0, mz), mx2 = split_x(mz, my1), mx3 = split_x(my1, end);
+    // Range k holds octant k: bit 0 set for x >= c.x, bit 1 for y, bit 2 for z.
+    const std::vector<SurfacePoint>::iterator bounds[9] = {begin, mx0, my0, mx1, mz, mx2, my1, mx3, end};
+    for (int k = 0; k < 8; ++k) {
+        int a = int(bounds[k] - points_.begin()), b = int(bounds[k + 1] - points_.begin());
+        if (b > a) {
+            ranges[n][0] = a;
+            ranges[n][1] = b - a;
+            ranges[n][2] = k;
+            ++n;
         }
     }
+    return n;
+}
+
+// A node's aggregate: from its points (a leaf, n <= 1) or by merging its n children's.
+void PointCloud::aggregate(Tree& t, int index, int first, int count, int n) {
     // Weights: w = flux summed over channels (the centre and covariance), a = area (the centre
     // of an unlit node).
     double wsum = 0, area = 0;
@@ -495,10 +576,10 @@ void PointCloud::build(int index, int first, int count, int depth) {
         if (w > 0) {
             const double W = wsum + w;
             const Vec3 d = cw - wmean;
-            const double t = wsum * w / W;  // weight of the between-means term
+            const double tw = wsum * w / W;  // weight of the between-means term
             for (int k = 0; k < 6; ++k) cov[k] = (wsum * cov[k] + w * S[k]) / W;
-            cov[0] += t * d.x * d.x / W, cov[1] += t * d.y * d.y / W, cov[2] += t * d.z * d.z / W;
-            cov[3] += t * d.x * d.y / W, cov[4] += t * d.x * d.z / W, cov[5] += t * d.y * d.z / W;
+            cov[0] += tw * d.x * d.x / W, cov[1] += tw * d.y * d.y / W, cov[2] += tw * d.z * d.z / W;
+            cov[3] += tw * d.x * d.y / W, cov[4] += tw * d.x * d.z / W, cov[5] += tw * d.y * d.z / W;
             wmean = wmean + d * (w / W);
             wsum = W;
         }
@@ -510,7 +591,7 @@ void PointCloud::build(int index, int first, int count, int depth) {
         flux += f;
         max_spacing = std::max(max_spacing, sp);
     };
-    if (n <= 1) {  // a leaf (or nothing to split: all on one side of every plane)
+    if (n <= 1) {
         static const double zero[6] = {0, 0, 0, 0, 0, 0};
         for (int i = first; i < first + count; ++i) {
             const SurfacePoint& s = points_[i];
@@ -518,33 +599,23 @@ void PointCloud::build(int index, int first, int count, int depth) {
             add(f.r + f.g + f.b, s.area, s.p, s.p, zero, f, s.spacing);
         }
     } else {
-        const int child = int(nodes_.size());
-        nodes_.resize(nodes_.size() + n);
-        aggs_.resize(aggs_.size() + n);
-        aux_.resize(aux_.size() + n);
-        merge_.resize(merge_.size() + n);
-        nodes_[index].child = child;
-        nodes_[index].children = std::int16_t(n);
+        const int child = t.nodes[index].child;
         for (int k = 0; k < n; ++k) {
-            nodes_[child + k].octant = std::uint8_t(ranges[k][2]);
-            build(child + k, ranges[k][0], ranges[k][1], depth + 1);
-        }
-        for (int k = 0; k < n; ++k) {
-            const Agg& c = aggs_[child + k];
-            const Merge& m = merge_[child + k];
-            add(m.wsum, m.area, c.centre, m.area_centre, c.cov, c.flux, aux_[child + k].max_spacing);
+            const Agg& c = t.aggs[child + k];
+            const Merge& m = t.merge[child + k];
+            add(m.wsum, m.area, c.centre, m.area_centre, c.cov, c.flux, t.aux[child + k].max_spacing);
         }
     }
-    // (nodes_/aggs_ may have moved: index again)
-    Agg& g = aggs_[index];
-    merge_[index] = {wsum, area, amean};
+    Agg& g = t.aggs[index];
+    t.merge[index] = {wsum, area, amean};
     // The flux-weighted centre is where an aggregate's light comes from; an unlit node has
     // no flux to place, its area-weighted centre is used.
-    g.centre = wsum > 0 ? wmean : (area > 0 ? amean : lo);
+    if (wsum > 0) g.centre = wmean;
+    else if (area > 0) g.centre = amean;
     for (int k = 0; k < 6; ++k) g.cov[k] = wsum > 0 ? cov[k] : 0.0;
     g.flux = flux;
-    aux_[index].max_spacing = max_spacing;
-    nodes_[index].lit = flux.max_component() > 0;
+    t.aux[index].max_spacing = max_spacing;
+    t.nodes[index].lit = flux.max_component() > 0;
 }
 
 void PointCloud::finish() {
@@ -950,7 +1021,8 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
     } else {
         report.unbounded = true;
     }
-    auto cloud = std::make_shared<const PointCloud>(std::move(points), [this](double h) { return near_reflectance(h); });
+    auto cloud = std::make_shared<const PointCloud>(std::move(points), [this](double h) { return near_reflectance(h); },
+                                                    &parallel);
 
     g_clouds += 1;
     g_points += cloud->points().size();

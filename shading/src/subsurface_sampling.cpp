@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
+#include <unordered_map>  // the layers to split, per parent line
 
 #include "shading/subsurface.h"
 
@@ -31,7 +31,7 @@ constexpr double kDilate = 4.5;
 constexpr double kDepthSlack = 4.0;
 // Level-0 lines at most (a sample_spacing far below the object's size would never finish).
 constexpr double kMaxLines = 5e7;
-// Line indices are packed in 28 bits per axis (line_key).
+// Line indices of the finest level stay far inside int64 and int.
 constexpr std::int64_t kMaxIndex = std::int64_t(1) << 28;
 
 double smooth01(double t) {
@@ -51,15 +51,12 @@ double family_weight(const Vec3& n, int axis) {
     return w[axis] / sum;
 }
 
-std::uint64_t line_key(int level, int axis, std::int64_t i, std::int64_t j) {
-    return (std::uint64_t(level) << 58) | (std::uint64_t(axis) << 56) | (std::uint64_t(i) << 28) | std::uint64_t(j);
-}
-
 struct Line {
     int axis = 0, level = 0;
     std::int64_t i = 0, j = 0;
     std::size_t first = 0;  // its crossings: hits_[first, first + count), sorted by depth t
     int count = 0;
+    int child = -1;         // the first of its four sub-lines (cell (2i + a, 2j + b) at child + a + 2b)
 };
 
 struct Sample {
@@ -72,7 +69,7 @@ struct Sample {
 class Sampling {
 public:
     Sampling(const ParallelFor& parallel, const Vec3& lo, const Vec3& hi, double h0) : parallel_(parallel), h0_(h0) {
-        for (int k = 0; k < 64; ++k) spacing_[k] = std::ldexp(h0, -k);
+        for (int k = 0; k < 64; ++k) spacing_[k] = std::ldexp(h0, -k);  // (levels <= 12 + 3)
         lo_[0] = lo.x, lo_[1] = lo.y, lo_[2] = lo.z;
         const double hi3[3] = {hi.x, hi.y, hi.z};
         for (int a = 0; a < 3; ++a) len_[a] = hi3[a] - lo_[a];
@@ -101,7 +98,6 @@ private:
     std::vector<Line> lines_;
     std::vector<SurfaceSampler::Hit> hits_;
     std::vector<int> hit_sample_;  // per crossing: its sample, -1 if none (grazing family)
-    std::unordered_map<std::uint64_t, int> refined_;  // lines of levels >= 1
     std::vector<Sample> samples_;
     double e_max_ = 0;
 };
@@ -116,16 +112,20 @@ Vec3 Sampling::origin(const Line& L) const {
     return Vec3(o[0], o[1], o[2]);
 }
 
+// The line of cell (i, j) of a level: from its level-0 ancestor down through the sub-lines.
 int Sampling::find(int level, int axis, std::int64_t i, std::int64_t j) const {
     const std::int64_t scale = std::int64_t(1) << level;
     if (i < 0 || j < 0 || i >= n0_[axis][0] * scale || j >= n0_[axis][1] * scale) return -1;
-    if (level == 0) return int(base_[axis] + std::size_t(i * n0_[axis][1] + j));
-    auto it = refined_.find(line_key(level, axis, i, j));
-    return it == refined_.end() ? -1 : it->second;
+    int li = int(base_[axis] + std::size_t((i >> level) * n0_[axis][1] + (j >> level)));
+    for (int shift = level - 1; shift >= 0; --shift) {
+        const int c = lines_[li].child;
+        if (c < 0) return -1;
+        li = c + int((i >> shift) & 1) + 2 * int((j >> shift) & 1);
+    }
+    return li;
 }
 
 void Sampling::add_line(int level, int axis, std::int64_t i, std::int64_t j) {
-    if (level > 0) refined_.emplace(line_key(level, axis, i, j), int(lines_.size()));
     Line L;
     L.axis = axis;
     L.level = level;
@@ -238,7 +238,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                                     std::to_string(total) + " sample lines across an object " +
                                     std::to_string(std::max({len_[0], len_[1], len_[2]})) +
                                     " units wide (at most 5e7): give a larger sample_spacing");
-    // Refined line indices must fit line_key's 28 bits.
+    // Refined line cells must stay countable.
     for (int a = 0; a < 3; ++a)
         while (levels > 0 && std::max(n0_[a][0], n0_[a][1]) * (std::int64_t(1) << levels) >= kMaxIndex) --levels;
     lines_.reserve(std::size_t(total));
@@ -277,21 +277,26 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
         for (std::size_t si = level_first; si < level_end && k < plan.view_levels; ++si)
             if (samples_[si].active && plan.view.near(samples_[si].pt.p, plan.reach + h)) mark[si - level_first] = 1;
         // Then: |E(-1) - 2 E + E(+1)| / 2 (the departure from the linear interpolation of the
-        // two neighbours) above tolerance x max E_t, along either grid direction.
-        for (std::size_t si = level_first; si < level_end && k >= plan.view_levels; ++si) {
-            const Sample& s = samples_[si];
-            if (!s.active) continue;
-            for (int dir = 0; dir < 2; ++dir) {
-                double ep, em;
-                if (neighbour(s, dir == 0, dir == 1, &ep) && neighbour(s, -(dir == 0), -(dir == 1), &em) &&
-                    std::fabs(ep - 2 * s.e + em) > threshold) {
-                    if (plan.view.near(s.pt.p, plan.reach)) {
-                        mark[si - level_first] = 1;
-                        seeds.push_back(si);
+        // two neighbours) above tolerance x max E_t, along either grid direction (each sample
+        // on its own: in parallel, chunks of 64).
+        if (k >= plan.view_levels) {
+            const std::size_t n = level_end - level_first, chunks = (n + 63) / 64;
+            parallel_(chunks, [&](std::size_t c, SurfaceSampler&) {
+                for (std::size_t si = level_first + 64 * c; si < std::min(level_end, level_first + 64 * (c + 1)); ++si) {
+                    const Sample& s = samples_[si];
+                    if (!s.active) continue;
+                    for (int dir = 0; dir < 2; ++dir) {
+                        double ep, em;
+                        if (neighbour(s, dir == 0, dir == 1, &ep) && neighbour(s, -(dir == 0), -(dir == 1), &em) &&
+                            std::fabs(ep - 2 * s.e + em) > threshold) {
+                            if (plan.view.near(s.pt.p, plan.reach)) mark[si - level_first] = 1;
+                            break;
+                        }
                     }
-                    break;
                 }
-            }
+            });
+            for (std::size_t si = level_first; si < level_end; ++si)
+                if (mark[si - level_first]) seeds.push_back(si);
         }
         if (seeds.empty() && k >= plan.view_levels) break;
         // Widen: every sample of this level on the same surface within kDilate spacings.
@@ -335,6 +340,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
         for (int p : parents) {
             const int axis = lines_[p].axis;
             const std::int64_t i = lines_[p].i, j = lines_[p].j;
+            lines_[p].child = int(lines_.size());
             for (int d = 0; d < 4; ++d) add_line(k + 1, axis, 2 * i + (d & 1), 2 * j + (d >> 1));
         }
         shoot(first_line);

@@ -113,6 +113,12 @@ private:
 // ---------------------------------------------------------------------------------------------
 // Surface samples and the octree.
 
+class SurfaceSampler;
+// Runs task(i, sampler) for i in [0, n), possibly from several threads, each with its own
+// sampler; returns when all are done (rethrowing the first exception).
+using ParallelFor =
+    std::function<void(std::size_t n, const std::function<void(std::size_t, SurfaceSampler&)>& task)>;
+
 // One surface sample: position and outward unit normal (scene units), the area it stands for,
 // the irradiance transmitted into the medium there (POV units, see above), and the spacing
 // of the sample lines that found it (its refinement level).
@@ -136,9 +142,10 @@ public:
     // Near reflectance of a spacing h (RdProfile::near_reflectance).
     using NearFn = std::function<Rgb(double h)>;
     // Points of possibly different spacings (SurfacePoint::spacing > 0). Each point gets a
-    // lookup spacing H >= its own: the smallest H such that no point within 3H of it has a
-    // spacing above H (then the window's ramp [H, 3H] is sampled at least as finely as H).
-    PointCloud(std::vector<SurfacePoint> points, const NearFn& near);
+    // lookup spacing H >= its own: the smallest H such that no point within 3H of its leaf's
+    // box has a spacing above H (then the window's ramp [H, 3H] is sampled at least as finely
+    // as H); found in parallel through `parallel` if given.
+    PointCloud(std::vector<SurfacePoint> points, const NearFn& near, const ParallelFor* parallel = nullptr);
     // Every point at one spacing h (SurfacePoint::spacing ignored), near = near_reflectance(h).
     PointCloud(std::vector<SurfacePoint> points, double spacing, const Rgb& near = Rgb(0.0));
 
@@ -208,8 +215,11 @@ private:
         double h;
         Rgb near;
     };
-    void build_tree();
-    void build(int index, int first, int count, int depth);
+    struct Tree;
+    void build_tree(const ParallelFor* parallel);
+    void build(Tree& t, int index, int first, int count, int depth);
+    int split(Tree& t, int index, int first, int count, int depth, int ranges[8][3]);
+    void aggregate(Tree& t, int index, int first, int count, int n);
     void finish();
     double max_spacing_within(int start, const float* lo, const float* hi, double radius, double above) const;
     int nearest(const Vec3& x) const;
@@ -221,7 +231,6 @@ private:
     std::vector<Node> nodes_;
     std::vector<Agg> aggs_;
     std::vector<Aux> aux_;
-    std::vector<Merge> merge_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -277,10 +286,6 @@ struct SubsurfaceSettings {
     std::size_t max_points = 4000000;  // per object; refinement stops before exceeding it
 };
 
-// Runs task(i, sampler) for i in [0, n), possibly from several threads, each with its own
-// sampler; returns when all are done (rethrowing the first exception).
-using ParallelFor =
-    std::function<void(std::size_t n, const std::function<void(std::size_t, SurfaceSampler&)>& task)>;
 
 // What building one cloud found (for the statistics).
 struct CloudReport {
