@@ -9,7 +9,6 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>  // the layers to split, per parent line
 
 #include "shading/subsurface.h"
 
@@ -34,6 +33,13 @@ constexpr double kMaxLines = 5e7;
 // Line indices of the finest level stay far inside int64 and int.
 constexpr std::int64_t kMaxIndex = std::int64_t(1) << 28;
 
+// reserve() for a vector that keeps growing: at least double, so appends stay amortised O(1)
+// (an exact reserve per level would copy everything at every level).
+template <class V>
+void reserve_more(V& v, std::size_t n) {
+    if (n > v.capacity()) v.reserve(std::max(n, 2 * v.capacity()));
+}
+
 double smooth01(double t) {
     if (t <= 0) return 0;
     if (t >= 1) return 1;
@@ -54,15 +60,25 @@ double family_weight(const Vec3& n, int axis) {
 struct Line {
     int axis = 0, level = 0;
     std::int64_t i = 0, j = 0;
-    std::size_t first = 0;  // its crossings: hits_[first, first + count), sorted by depth t
+    int chunk = 0, first = 0;  // its crossings: chunk `chunk`, [first, first + count), by depth t
     int count = 0;
-    int child = -1;         // the first of its four sub-lines (cell (2i + a, 2j + b) at child + a + 2b)
+    int child = -1;            // the first of its four sub-lines (cell (2i + a, 2j + b) at child + a + 2b)
 };
 
+// The crossings found by one chunk of lines, and their samples (-1: none, the family's share
+// is 0 there). Each chunk is filled by whichever thread shot it; nothing is copied after.
+struct HitChunk {
+    std::vector<SurfaceSampler::Hit> hits;
+    std::vector<int> sample;
+};
+
+// A sample is a crossing (its position and normal stay in the HitChunk) with its area and light.
 struct Sample {
-    int line = 0, layer = 0, level = 0;
-    SurfacePoint pt;
+    int line = 0, layer = 0;
+    double area = 0;
+    Rgb irradiance;
     double e = 0;  // E_t summed over the channels
+    std::uint8_t level = 0;
     bool active = true;
 };
 
@@ -79,13 +95,15 @@ public:
 
 private:
     double spacing(int level) const { return spacing_[level]; }
-    const SurfaceSampler::Hit& hit(const Line& L, int m) const { return hits_[L.first + m]; }
-    int& sample_of(const Line& L, int m) { return hit_sample_[L.first + m]; }
-    int sample_of(const Line& L, int m) const { return hit_sample_[L.first + m]; }
+    const SurfaceSampler::Hit& hit(const Line& L, int m) const { return chunks_[L.chunk].hits[L.first + m]; }
+    const SurfaceSampler::Hit& hit(const Sample& s) const { return hit(lines_[s.line], s.layer); }
+    int& sample_of(const Line& L, int m) { return chunks_[L.chunk].sample[L.first + m]; }
+    int sample_of(const Line& L, int m) const { return chunks_[L.chunk].sample[L.first + m]; }
     Vec3 origin(const Line& L) const;
     int find(int level, int axis, std::int64_t i, std::int64_t j) const;
     void add_line(int level, int axis, std::int64_t i, std::int64_t j);
     void shoot(std::size_t first);
+    bool make_sample(int line, int layer, Sample* s) const;
     void add_sample(int line, int layer);
     void light(std::size_t first);
     bool neighbour(const Sample& s, int di, int dj, double* e) const;
@@ -96,9 +114,9 @@ private:
     std::size_t base_[4] = {};    // level-0 lines of family a start at base_[a]
     double spacing_[64];
     std::vector<Line> lines_;
-    std::vector<SurfaceSampler::Hit> hits_;
-    std::vector<int> hit_sample_;  // per crossing: its sample, -1 if none (grazing family)
+    std::vector<HitChunk> chunks_;
     std::vector<Sample> samples_;
+    std::size_t active_ = 0;  // samples not replaced by finer ones
     double e_max_ = 0;
 };
 
@@ -135,63 +153,57 @@ void Sampling::add_line(int level, int axis, std::int64_t i, std::int64_t j) {
 }
 
 void Sampling::shoot(std::size_t first) {
-    // Chunks of lines, each collecting its crossings in a buffer of its own; the buffers are
-    // then appended in chunk order, so the layout does not depend on who shot what.
+    // Chunks of lines, each collecting its crossings in a chunk of its own.
     constexpr std::size_t kChunk = 256;
-    const std::size_t n = lines_.size() - first, chunks = (n + kChunk - 1) / kChunk;
-    std::vector<std::vector<SurfaceSampler::Hit>> buffers(chunks);
+    const std::size_t n = lines_.size() - first, chunks = (n + kChunk - 1) / kChunk, base = chunks_.size();
+    chunks_.resize(base + chunks);
     parallel_(chunks, [&](std::size_t c, SurfaceSampler& s) {
-        std::vector<SurfaceSampler::Hit>& buf = buffers[c];
-        buf.reserve(2 * kChunk);
+        HitChunk& chunk = chunks_[base + c];
+        chunk.hits.reserve(2 * kChunk);
         for (std::size_t li = first + c * kChunk; li < std::min(lines_.size(), first + (c + 1) * kChunk); ++li) {
             Line& L = lines_[li];
-            const std::size_t start = buf.size();
-            s.line_hits(L.axis, origin(L), &buf);
-            for (std::size_t k = start; k < buf.size(); ++k) buf[k].n = normalize(buf[k].n);
-            std::sort(buf.begin() + std::ptrdiff_t(start), buf.end(),
+            const std::size_t start = chunk.hits.size();
+            s.line_hits(L.axis, origin(L), &chunk.hits);
+            for (std::size_t k = start; k < chunk.hits.size(); ++k) chunk.hits[k].n = normalize(chunk.hits[k].n);
+            std::sort(chunk.hits.begin() + std::ptrdiff_t(start), chunk.hits.end(),
                       [](const SurfaceSampler::Hit& a, const SurfaceSampler::Hit& b) { return a.t < b.t; });
-            L.first = start;  // within the buffer, for now
-            L.count = int(buf.size() - start);
+            L.chunk = int(base + c);
+            L.first = int(start);
+            L.count = int(chunk.hits.size() - start);
         }
+        chunk.sample.assign(chunk.hits.size(), -1);
     });
-    std::size_t total = hits_.size();
-    for (const auto& b : buffers) total += b.size();
-    hits_.reserve(total);
-    hit_sample_.reserve(total);
-    for (std::size_t c = 0; c < chunks; ++c) {
-        const std::size_t base = hits_.size();
-        for (std::size_t li = first + c * kChunk; li < std::min(lines_.size(), first + (c + 1) * kChunk); ++li)
-            lines_[li].first += base;
-        hits_.insert(hits_.end(), buffers[c].begin(), buffers[c].end());
-        std::vector<SurfaceSampler::Hit>().swap(buffers[c]);
-    }
-    hit_sample_.resize(hits_.size(), -1);
 }
 
-void Sampling::add_sample(int line, int layer) {
+// The sample of crossing `layer` of line `line`, false if its family's share there is 0.
+bool Sampling::make_sample(int line, int layer, Sample* s) const {
     const Line& L = lines_[line];
     const SurfaceSampler::Hit& h0 = hit(L, layer);
     const double na = std::fabs(L.axis == 0 ? h0.n.x : (L.axis == 1 ? h0.n.y : h0.n.z));
     const double w = family_weight(h0.n, L.axis);
-    if (!(w > 0) || !(na > 0)) return;
+    if (!(w > 0) || !(na > 0)) return false;
     const double h = spacing(L.level);
+    s->line = line;
+    s->layer = layer;
+    s->level = std::uint8_t(L.level);
+    s->area = w * h * h / na;
+    return true;
+}
+
+void Sampling::add_sample(int line, int layer) {
     Sample s;
-    s.line = line;
-    s.layer = layer;
-    s.level = L.level;
-    s.pt.p = h0.p;
-    s.pt.n = h0.n;
-    s.pt.area = w * h * h / na;
-    s.pt.spacing = h;
-    sample_of(L, layer) = int(samples_.size());
+    if (!make_sample(line, layer, &s)) return;
+    sample_of(lines_[line], layer) = int(samples_.size());
     samples_.push_back(s);
+    ++active_;
 }
 
 void Sampling::light(std::size_t first) {
     parallel_(samples_.size() - first, [this, first](std::size_t k, SurfaceSampler& s) {
         Sample& S = samples_[first + k];
-        S.pt.irradiance = s.irradiance(S.pt.p, S.pt.n);
-        S.e = S.pt.irradiance.r + S.pt.irradiance.g + S.pt.irradiance.b;
+        const SurfaceSampler::Hit& at = hit(S);
+        S.irradiance = s.irradiance(at.p, at.n);
+        S.e = S.irradiance.r + S.irradiance.g + S.irradiance.b;
     });
     for (std::size_t k = first; k < samples_.size(); ++k) e_max_ = std::max(e_max_, samples_[k].e);
 }
@@ -210,7 +222,7 @@ bool Sampling::neighbour(const Sample& s, int di, int dj, double* e) const {
         const int q = sample_of(N, m);
         if (q < 0) continue;
         const double dt = std::fabs(hit(N, m).t - t);
-        if (dt <= best && dot(hit(N, m).n, s.pt.n) > 0.5) {
+        if (dt <= best && dot(hit(N, m).n, hit(L, s.layer).n) > 0.5) {
             best = dt;
             found = q;
         }
@@ -259,13 +271,16 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
         }
     report->thin = segments > 0 && thin * 10 > segments;
 
-    samples_.reserve(hits_.size() + hits_.size() / 2);
+    std::size_t crossings = 0;
+    for (const HitChunk& c : chunks_) crossings += c.hits.size();
+    samples_.reserve(crossings + crossings / 2);
     for (std::size_t li = 0; li < lines_.size(); ++li)
         for (int m = 0; m < lines_[li].count; ++m) add_sample(int(li), m);
     light(0);
 
-    // Refinement, level by level.
-    std::size_t level_first = 0;
+    // Refinement, level by level (samples [level_first, end) and lines [line_first, end) are
+    // the current level's).
+    std::size_t level_first = 0, line_first = 0;
     for (int k = 0; k < levels; ++k) {
         const std::size_t level_end = samples_.size();
         if (level_end == level_first || (k >= plan.view_levels && !(e_max_ > 0))) break;
@@ -275,7 +290,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
         // The first view_levels levels: every sample the view can see within reach (the base
         // spacing where the image is, coarser elsewhere).
         for (std::size_t si = level_first; si < level_end && k < plan.view_levels; ++si)
-            if (samples_[si].active && plan.view.near(samples_[si].pt.p, plan.reach + h)) mark[si - level_first] = 1;
+            if (samples_[si].active && plan.view.near(hit(samples_[si]).p, plan.reach + h)) mark[si - level_first] = 1;
         // Then: |E(-1) - 2 E + E(+1)| / 2 (the departure from the linear interpolation of the
         // two neighbours) above tolerance x max E_t, along either grid direction (each sample
         // on its own: in parallel, chunks of 64).
@@ -289,7 +304,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                         double ep, em;
                         if (neighbour(s, dir == 0, dir == 1, &ep) && neighbour(s, -(dir == 0), -(dir == 1), &em) &&
                             std::fabs(ep - 2 * s.e + em) > threshold) {
-                            if (plan.view.near(s.pt.p, plan.reach)) mark[si - level_first] = 1;
+                            if (plan.view.near(hit(s).p, plan.reach)) mark[si - level_first] = 1;
                             break;
                         }
                     }
@@ -313,30 +328,36 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                     const Line& N = lines_[li];
                     for (int m = 0; m < N.count; ++m) {
                         const int q = sample_of(N, m);
-                        if (q < 0 || !samples_[q].active || dot(hit(N, m).n, s.pt.n) <= 0) continue;
+                        if (q < 0 || !samples_[q].active || dot(hit(N, m).n, hit(L, s.layer).n) <= 0) continue;
                         if (std::fabs(hit(N, m).t - t) <= (kDilate + 1) * kDepthSlack * h) mark[q - level_first] = 1;
                     }
                 }
         }
-        // The lines to split and, per line, which of its crossings (layers) to replace.
+        // The lines to split (in the order of their first marked sample) and, per line, its
+        // marked crossings (layers): lists threaded through the marked samples.
+        const std::size_t line_end = lines_.size();
+        std::vector<int> head(line_end - line_first, -1), tail(line_end - line_first, -1),
+            next(level_end - level_first, -1);
         std::vector<int> parents;
-        std::unordered_map<int, std::vector<int>> layers;
         std::size_t marked = 0;
         for (std::size_t si = level_first; si < level_end; ++si) {
             if (!mark[si - level_first]) continue;
             ++marked;
-            auto& v = layers[samples_[si].line];
-            if (v.empty()) parents.push_back(samples_[si].line);
-            v.push_back(samples_[si].layer);
+            const int li = samples_[si].line - int(line_first), me = int(si - level_first);
+            if (head[li] < 0) {
+                head[li] = me;
+                parents.push_back(samples_[si].line);
+            } else {
+                next[tail[li]] = me;
+            }
+            tail[li] = me;
         }
-        std::size_t active = 0;
-        for (const Sample& s : samples_) active += s.active;
-        if (active + 3 * marked > max_points) {
+        if (active_ + 3 * marked > max_points) {
             report->capped = true;
             break;
         }
         const std::size_t first_line = lines_.size();
-        lines_.reserve(lines_.size() + 4 * parents.size());
+        reserve_more(lines_, lines_.size() + 4 * parents.size());
         for (int p : parents) {
             const int axis = lines_[p].axis;
             const std::int64_t i = lines_[p].i, j = lines_[p].j;
@@ -344,22 +365,54 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
             for (int d = 0; d < 4; ++d) add_line(k + 1, axis, 2 * i + (d & 1), 2 * j + (d >> 1));
         }
         shoot(first_line);
+        // The new samples, in parallel: count per parent, place by prefix sums, then fill.
+        // Split only where the four sub-lines cross the surface as often as the parent line
+        // does (the k-th crossing is then the same sheet of surface); silhouettes and other
+        // changes of topology keep the parent's sample.
         const std::size_t first_sample = samples_.size();
-        samples_.reserve(samples_.size() + 4 * marked);
+        std::vector<std::size_t> offset(parents.size() + 1, 0), replaced(parents.size(), 0);
+        auto for_parents = [&](bool fill) {
+            const std::size_t chunks = (parents.size() + 63) / 64;
+            parallel_(chunks, [&](std::size_t c, SurfaceSampler&) {
+                for (std::size_t pi = 64 * c; pi < std::min(parents.size(), 64 * (c + 1)); ++pi) {
+                    const int p = parents[pi];
+                    const int c0 = int(first_line + 4 * pi);
+                    bool same = true;
+                    for (int d = 0; d < 4; ++d) same = same && lines_[c0 + d].count == lines_[p].count;
+                    if (!same) continue;
+                    std::size_t at = offset[pi], n = 0, r = 0;
+                    for (int me = head[p - int(line_first)]; me >= 0; me = next[me]) {
+                        const int m = samples_[level_first + me].layer;
+                        ++r;
+                        if (fill) samples_[sample_of(lines_[p], m)].active = false;
+                        for (int d = 0; d < 4; ++d) {
+                            Sample q;
+                            if (!make_sample(c0 + d, m, &q)) continue;
+                            if (fill) {
+                                sample_of(lines_[c0 + d], m) = int(first_sample + at);
+                                samples_[first_sample + at++] = q;
+                            }
+                            ++n;
+                        }
+                    }
+                    if (!fill) {
+                        offset[pi + 1] = n;
+                        replaced[pi] = r;
+                    }
+                }
+            });
+        };
+        for_parents(false);
+        std::size_t gone = 0;
         for (std::size_t pi = 0; pi < parents.size(); ++pi) {
-            const int p = parents[pi];
-            const int c0 = int(first_line + 4 * pi);
-            // Split only where the four sub-lines cross the surface as often as the parent
-            // line does (the k-th crossing is then the same sheet of surface); silhouettes and
-            // other changes of topology keep the parent's sample.
-            bool same = true;
-            for (int d = 0; d < 4; ++d) same = same && lines_[c0 + d].count == lines_[p].count;
-            if (!same) continue;
-            for (int m : layers[p]) {
-                samples_[sample_of(lines_[p], m)].active = false;
-                for (int d = 0; d < 4; ++d) add_sample(c0 + d, m);
-            }
+            offset[pi + 1] += offset[pi];
+            gone += replaced[pi];
         }
+        reserve_more(samples_, first_sample + offset.back());
+        samples_.resize(first_sample + offset.back());
+        for_parents(true);
+        active_ += offset.back() - gone;
+        line_first = first_line;
         if (samples_.size() == first_sample) break;
         light(first_sample);
         report->levels = k + 1;
@@ -368,11 +421,18 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
     }
 
     std::vector<SurfacePoint> out;
-    std::size_t n = 0;
-    for (const Sample& s : samples_) n += s.active;
-    out.reserve(n);
+    out.reserve(active_);
     for (const Sample& s : samples_)
-        if (s.active) out.push_back(s.pt);
+        if (s.active) {
+            const SurfaceSampler::Hit& at = hit(s);
+            SurfacePoint pt;
+            pt.p = at.p;
+            pt.n = at.n;
+            pt.area = s.area;
+            pt.irradiance = s.irradiance;
+            pt.spacing = spacing(s.level);
+            out.push_back(pt);
+        }
     return out;
 }
 
