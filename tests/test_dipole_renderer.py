@@ -184,3 +184,12 @@ sphere {{ 0, 1
         runner.render(text, fork, width=8, height=8)
     assert message in str(e.value)
     assert e.value.line == 5
+
+
+def test_a_sample_spacing_far_below_the_object_is_an_error_not_a_hang(fork):
+    # 1e-5 units on a 2-unit ball: 1.2e11 lines. The render stops at once with the reason.
+    text = MARBLE.format(globals="", dipole="sample_spacing 0.00001")
+    with pytest.raises(runner.RenderError) as e:
+        runner.render(text, fork, width=16, height=16, timeout=60)
+    assert "dipole: a sample spacing of 1e-05 units needs" in e.value.stderr
+    assert "give a larger sample_spacing" in e.value.stderr

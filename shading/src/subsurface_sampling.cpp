@@ -6,6 +6,7 @@
 // stage starts, so the cloud is the same whichever thread computed what.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -237,19 +238,25 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
     const double tolerance = plan.tolerance, mfp = plan.mean_free_path;
     const std::size_t max_points = plan.max_points;
     report->view_limited = plan.view.kind != ViewVolume::Kind::Everywhere;
-    // Level 0: three families of lines at spacing h0 across the box.
-    double total = 0;
+    // Level 0: three families of lines at spacing h0 across the box. The base spacing (after
+    // the view levels) would need `dense` lines over the whole box: too many for any view.
+    double total = 0, dense = 0;
+    const double base = spacing(plan.view_levels);
     for (int a = 0; a < 3; ++a) {
         const int b = (a + 1) % 3, c = (a + 2) % 3;
         n0_[a][0] = std::max<std::int64_t>(1, std::int64_t(std::ceil(len_[b] / h0_)));
         n0_[a][1] = std::max<std::int64_t>(1, std::int64_t(std::ceil(len_[c] / h0_)));
         total += double(n0_[a][0]) * double(n0_[a][1]);
+        dense += std::max(1.0, std::ceil(len_[b] / base)) * std::max(1.0, std::ceil(len_[c] / base));
     }
-    if (!(total <= kMaxLines))
-        throw std::invalid_argument("dipole: a sample spacing of " + std::to_string(h0_) + " units needs " +
-                                    std::to_string(total) + " sample lines across an object " +
-                                    std::to_string(std::max({len_[0], len_[1], len_[2]})) +
-                                    " units wide (at most 5e7): give a larger sample_spacing");
+    if (!(dense <= kMaxLines)) {
+        char msg[256];
+        std::snprintf(msg, sizeof msg,
+                      "dipole: a sample spacing of %g units needs %.3g sample lines across an object %g units "
+                      "wide (at most 5e7): give a larger sample_spacing",
+                      base, dense, std::max({len_[0], len_[1], len_[2]}));
+        throw std::invalid_argument(msg);
+    }
     // Refined line cells must stay countable.
     for (int a = 0; a < 3; ++a)
         while (levels > 0 && std::max(n0_[a][0], n0_[a][1]) * (std::int64_t(1) << levels) >= kMaxIndex) --levels;
