@@ -134,6 +134,10 @@ RdProfile::RdProfile(Fn rd, Fn disc, double scale, double r_max)
             nd.d3[k] = (gpp[k] - 2 * gp[k] + 2 * gm[k] - gmm[k]) / (2 * e3 * e3 * e3);
         }
     }
+    if (!disc_) {
+        cumulative_.assign(n + 1, Rgb(0.0));
+        for (int i = 0; i < n; ++i) cumulative_[i + 1] = cumulative_[i] + interval_integral(node_r_[i], node_r_[i + 1]);
+    }
     total_ = RdProfile::disc(kInf);  // (the parameter `disc` was moved into disc_)
 
     // Aggregation may widen where the profile's share per unit log r, 2 pi r^2 Rd(r) / total,
@@ -289,16 +293,22 @@ void RdProfile::eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const {
 Rgb RdProfile::disc(double R) const {
     if (!(R > 0)) return Rgb(0.0);
     if (disc_) return disc_(R);
-    // Gauss-Legendre on each node interval up to min(R, r_max) (the nodes follow the profile's
-    // own scale: uniform within the peak, geometric along the tail).
+    // Gauss-Legendre on the node intervals (the nodes follow the profile's own scale: uniform
+    // within the peak, geometric along the tail): whole intervals from the running sums made
+    // once, the last part here.
     const double end = std::min(R, r_max_);
+    const std::size_t i = std::size_t(std::upper_bound(node_r_.begin(), node_r_.end(), end) - node_r_.begin()) - 1;
+    Rgb sum = cumulative_[i];
+    if (i + 1 < node_r_.size() && end > node_r_[i]) sum += interval_integral(node_r_[i], end);
+    return sum;
+}
+
+Rgb RdProfile::interval_integral(double a, double b) const {
+    const double c = 0.5 * (a + b), w = 0.5 * (b - a);
     Rgb sum;
-    for (std::size_t i = 0; i + 1 < node_r_.size() && node_r_[i] < end; ++i) {
-        const double a = node_r_[i], b = std::min(node_r_[i + 1], end), c = 0.5 * (a + b), w = 0.5 * (b - a);
-        for (int g = 0; g < 4; ++g) {
-            const double r = c + w * kGaussX[g];
-            sum += rd_(r) * (kGaussW[g] * w * 2 * kPi * r);
-        }
+    for (int g = 0; g < 4; ++g) {
+        const double r = c + w * kGaussX[g];
+        sum += rd_(r) * (kGaussW[g] * w * 2 * kPi * r);
     }
     return sum;
 }

@@ -62,7 +62,7 @@ public:
     // rd(r): the profile, finite and >= 0 for every r >= 0 (called only here, while building
     // and for the near field). disc(R) (may be empty): its integral over a disc of radius R,
     // dimensionless, disc(inf) the total diffuse reflectance; empty: integrated numerically
-    // from rd (Gauss-Legendre on the node intervals). scale > 0: the length of the profile's
+    // from rd (4-point Gauss-Legendre on each node interval, summed once). scale > 0: the length of the profile's
     // peak (the smallest mean free path 1/sigma_t'); r_max > 0: where rd may be taken as 0.
     // Throws std::invalid_argument for a bad range.
     RdProfile(Fn rd, Fn disc, double scale, double r_max);
@@ -105,8 +105,10 @@ private:
     Fn rd_, disc_;
     double scale_ = 1, inv_scale_ = 1, r_max_ = 1;
     Rgb total_;
+    Rgb interval_integral(double a, double b) const;
     std::vector<Node> nodes_;
     std::vector<double> node_r_;
+    std::vector<Rgb> cumulative_;  // without a disc callable: the integral up to each node
     std::vector<double> gain2_;
 };
 
