@@ -401,7 +401,7 @@ double worst_edge_error(const SubsurfaceSettings& st) {
 
 TEST(SubsurfaceSampling, ShadowEdgeProfileAtDefaultSettingsWithinThreePercent) {
     // At default settings the sampling refines to 0.0375 mm at the edge (4 levels): measured
-    // 0.94 %. Without refinement the points next to the edge are off by 27 % (1, 2, 3 levels:
+    // 1.01 %. Without refinement the points next to the edge are off by 27 % (1, 2, 3 levels:
     // 17, 8.6, 3.0 %): the near field takes x's own irradiance over 3 h.
     const double refined = worst_edge_error(SubsurfaceSettings{});
     SubsurfaceSettings flat;
