@@ -232,7 +232,7 @@ sanitize-tsan: $(STAMPS)/deps
 	  -DCMAKE_CXX_FLAGS="-fsanitize=thread -g" -DCMAKE_EXE_LINKER_FLAGS="-fsanitize=thread" >/dev/null
 	cmake --build $(TSAN_BUILD) -j $(JOBS) --target shading_tests
 	TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 $(TSAN_BUILD)/shading_tests \
-	  --gtest_filter='Threads.*:SharedTable.*:FinishRegistry.*:*Concurrent*'
+	  --gtest_filter='Threads.*:SharedTable.*:FinishRegistry.*:*Concurrent*:SubsurfaceSampling.CloudIsBuiltOnce*:SubsurfaceSampling.AnErrorWhileSampling*'
 
 $(ASAN_BIN): $(FORK_BIN) $(SANITIZE_BUILD)/libshading.a mk/asan-fork.sh FORCE
 	bash mk/asan-fork.sh $(POVDIR) $(ASAN_DIR) $(JOBS) $(POV_ASAN_CONFIGURE_ARGS)

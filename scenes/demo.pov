@@ -5,8 +5,7 @@
 //   front: a marble egg and a glass of whole milk (dipole subsurface, Jensen 2001 media)
 // `make demo` generates the tables (make brdf-data) and renders this to out/demo.png.
 #version 3.7;
-global_settings { assumed_gamma 1.0 max_trace_level 6 }
-#declare Dipole_MM_Per_Unit = 12;  // one unit is 12 mm: the spheres are ~17 mm across
+global_settings { assumed_gamma 1.0 max_trace_level 6 mm_per_unit 12 }  // one unit is 12 mm: the spheres are ~17 mm across
 #include "brdf_metals.inc"
 #include "brdf_fits.inc"
 #include "dipole_media.inc"

@@ -336,9 +336,15 @@ std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coa
         m->tangent = coat->tangent;
         m->reflection_samples = coat->reflection_samples;
     }
+    m->transmittance = std::make_shared<const ModelHandle>(
+        finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(s->dipole().medium().eta))));
     m->subsurface = std::move(s);
     return m;
 }
+
+ModelHandle::~ModelHandle() { finish_model_release(handle_); }
+
+int FinishModel::transmittance_handle() const { return transmittance ? transmittance->get() : 0; }
 
 std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec) {
     // The BRDF and its (lazy) albedo, shared while some finish uses them.

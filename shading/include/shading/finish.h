@@ -20,6 +20,19 @@ namespace shading {
 
 class Subsurface;  // subsurface.h
 
+// One reference to a registered finish model (finish_model_register), released on destruction.
+class ModelHandle {
+public:
+    explicit ModelHandle(int handle) : handle_(handle) {}
+    ~ModelHandle();
+    ModelHandle(const ModelHandle&) = delete;
+    ModelHandle& operator=(const ModelHandle&) = delete;
+    int get() const { return handle_; }
+
+private:
+    int handle_;
+};
+
 // The directional albedo a(theta) of one BRDF at FinishModel::kAlbedoNodes angles, computed
 // on first use (thread-safe, std::call_once) and shared by every finish model of that BRDF:
 // declaring a finish costs nothing until a render needs its albedo (indirect light, fill
@@ -70,6 +83,12 @@ struct FinishModel {
     // A `dipole { }` finish: the subsurface light (subsurface.h) the renderer adds at every
     // point, while `brdf` holds its single scattering plus any coat (DipoleSurfaceBrdf).
     std::shared_ptr<const Subsurface> subsurface;
+    // With a subsurface: a registered model whose BRDF is Ft(eta, cos_i)/pi
+    // (TransmittanceBrdf); lit by the renderer's light loop it yields the transmitted
+    // irradiance E_t at a point. Set by finish_model_with_subsurface, shared by copies, the
+    // handle released with the last of them.
+    std::shared_ptr<const ModelHandle> transmittance;
+    int transmittance_handle() const;
 };
 
 // A finish model around `brdf`, its directional albedo to be computed on first use
@@ -83,7 +102,8 @@ std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec
 
 // `coat` (may be null: no coat) with the subsurface `s` under it: a new model whose brdf is
 // DipoleSurfaceBrdf(s, coat's own BRDF without any earlier dipole), keeping the coat's scale,
-// tint, tangent and reflection samples. The albedo is recomputed (lazily) for the sum.
+// tint, tangent and reflection samples, and whose `transmittance` model is registered here.
+// The albedo is recomputed (lazily) for the sum.
 std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coat, std::shared_ptr<const Subsurface> s);
 
 // The model's directional albedo at cos(theta) (linear between nodes; scale/tint not applied).
