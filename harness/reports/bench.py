@@ -3,7 +3,14 @@
 Each row renders a scene with a baseline (usually stock POV-Ray) and a candidate (the
 fork, often with one of our finishes) and reports the ratio of POV's own *trace* times
 (start-up and parsing excluded). Renders alternate baseline/candidate and each ratio is the
-median over ``--repeat`` pairs, so machine noise hits both sides alike.
+median over ``--repeat`` pairs, so machine noise hits both sides alike. Rows of one *group*
+share their baseline and are measured in interleaved rounds (baseline, then every candidate,
+in a rotating order): each round's ratios divide by that round's baseline.
+
+The speed goals of issue 16 are the ``grid`` rows: 25 spheres (5 x 5, radius 1, spacing 2.2)
+over a plane, one parallel and one point light, orthographic camera, 1536 x 1536, no AA,
+against stock POV-Ray's ``diffuse 0.6 phong 0.5 phong_size 40``; the ``grid 2 threads`` rows
+render the same scenes with ``+WT2``.
 
     python -m harness.reports.bench                 # every row
     python -m harness.reports.bench -k unmodified   # rows whose name contains the text
@@ -62,6 +69,9 @@ class Row:
     width: int = 1280
     height: int = 960
     note: str = ""
+    threads: int = 1
+    #: rows with the same group share the baseline and are measured in interleaved rounds
+    group: str = ""
 
 
 ROWS: list[Row] = []
@@ -101,6 +111,49 @@ row("brdf_model (same microfacet, direct) / stock phong+specular",
     note="analytic evaluation")
 assert all(STOCK_FINISH not in r.candidate.scene for r in ROWS[1:])  # every candidate replaced it
 
+#: Issue 16's speed scene: 5 x 5 spheres of radius 1, spacing 2.2, over a plane, one parallel
+#: and one point light, orthographic camera; rendered at 1536 x 1536 without anti-aliasing.
+GRID_SCENE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 14, -14> look_at <0, 0.5, 0> right x*15 up y*15 }}
+light_source {{ <-1, 1.5, -0.6> * 1000 rgb <0.9, 0.9, 0.85> parallel point_at 0 }}
+light_source {{ <6, 9, -8> rgb <0.5, 0.55, 0.6> }}
+plane {{ y, 0 pigment {{ rgb 0.6 }} finish {{ diffuse 0.7 }} }}
+#declare I = 0;
+#while (I < 25)
+  sphere {{ <mod(I, 5) * 2.2 - 4.4, 1, div(I, 5) * 2.2 - 4.4>, 1
+    pigment {{ rgb <0.8, 0.5, 0.3> }}
+    finish {{ {finish} }} }}
+  #declare I = I + 1;
+#end
+"""
+GRID_PHONG = "diffuse 0.6 phong 0.5 phong_size 40"
+#: A gold-like conductor: Beckmann lobe, Smith G, conductor Fresnel (n + ik per channel).
+GRID_MODEL = "microfacet d=beckmann m=0.2 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8"
+GRID_SIZE = 1536
+
+
+def _grid(finish: str, binary: str = "fork", lookup: str = "") -> Side:
+    if finish == "table":
+        return Side(binary, GRID_SCENE.format(finish=f'brdf_table {{ "t.brdf"{lookup} }}'),
+                    files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)})
+    if finish == "model":
+        return Side(binary, GRID_SCENE.format(finish=f'brdf_model {{ "{GRID_MODEL}" }}'))
+    return Side(binary, GRID_SCENE.format(finish=GRID_PHONG))
+
+
+for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
+    _kw = dict(width=GRID_SIZE, height=GRID_SIZE, threads=_threads, group=_group)
+    row(f"{_group}: fork phong / stock phong", _grid("phong", "stock"), _grid("phong"),
+        note="goal <= 1.00 (+- noise)", **_kw)
+    row(f"{_group}: brdf_table 1 deg trilinear / stock phong", _grid("phong", "stock"), _grid("table"),
+        note="goal <= 1.05", **_kw)
+    if _threads == 1:
+        row(f"{_group}: brdf_table 1 deg nearest / stock phong", _grid("phong", "stock"),
+            _grid("table", lookup=" interpolate 0"), **_kw)
+    row(f"{_group}: brdf_model Beckmann conductor / stock phong", _grid("phong", "stock"), _grid("model"),
+        note="goal <= 1.25", **_kw)
+
 
 @dataclass
 class Result:
@@ -118,7 +171,7 @@ class Result:
 
 
 def _trace_time(side: Side, r: Row) -> float:
-    res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=1,
+    res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=r.threads,
                         files=side.resolved_files())
     if res.trace_seconds is None:
         raise RuntimeError(f"{r.name}: POV printed no trace time")
@@ -135,6 +188,45 @@ def measure(r: Row, repeat: int = 5, log: Optional[Callable[[str], None]] = None
         if log:
             log(f"  {r.name} [{i + 1}/{repeat}] {base[-1]:.3f} s vs {cand[-1]:.3f} s")
     return Result(r, base, cand)
+
+
+def measure_group(rows: Sequence[Row], repeat: int = 5,
+                  log: Optional[Callable[[str], None]] = None) -> list[Result]:
+    """Rows sharing one baseline, in ``repeat`` interleaved rounds after a warm-up round.
+
+    Each round renders the baseline, then every candidate (the order rotates from round to
+    round); a row's ratios divide its candidate's time by the same round's baseline.
+    """
+    first = rows[0]
+    assert all(r.baseline == first.baseline and (r.width, r.height, r.threads) ==
+               (first.width, first.height, first.threads) for r in rows), "a group shares its baseline"
+    _trace_time(first.baseline, first)
+    for r in rows:
+        _trace_time(r.candidate, r)  # warm file caches and table caches
+    base: list[float] = []
+    cand: list[list[float]] = [[] for _ in rows]
+    for i in range(repeat):
+        base.append(_trace_time(first.baseline, first))
+        for k in range(len(rows)):
+            j = (k + i) % len(rows)
+            cand[j].append(_trace_time(rows[j].candidate, rows[j]))
+        if log:
+            log(f"  {first.group} [{i + 1}/{repeat}] baseline {base[-1]:.3f} s, " +
+                ", ".join(f"{c[-1]:.3f}" for c in cand))
+    return [Result(r, list(base), c) for r, c in zip(rows, cand)]
+
+
+def measure_all(rows: Sequence[Row], repeat: int = 5,
+                log: Optional[Callable[[str], None]] = None) -> list[Result]:
+    """Every row, groups together (in the order of their first row), results in row order."""
+    done: dict[str, Result] = {}
+    for r in rows:
+        if r.name in done:
+            continue
+        members = [x for x in rows if r.group and x.group == r.group] or [r]
+        results = measure_group(members, repeat, log) if len(members) > 1 else [measure(r, repeat, log)]
+        done.update({x.row.name: x for x in results})
+    return [done[r.name] for r in rows]
 
 
 def format_table(results: Sequence[Result]) -> str:
@@ -164,7 +256,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f"no benchmark row matches {args.pattern!r}", file=sys.stderr)
         return 2
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    results = [measure(r, max(1, args.repeat), log) for r in rows]
+    results = measure_all(rows, max(1, args.repeat), log)
     print(format_table(results))
     return 0
 

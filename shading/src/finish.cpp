@@ -3,6 +3,7 @@
 #include "shading/model_spec.h"
 #include "shading/models.h"
 #include "shading/subsurface.h"
+#include "shading/table_sampler.h"
 
 #include <algorithm>
 #include <array>
@@ -108,31 +109,77 @@ const FinishModel* finish_model_get(int handle) {
     return s ? s->model.load(std::memory_order_acquire) : nullptr;
 }
 
+int finish_model_with_tangent(int handle, const Vec3& tangent) {
+    const FinishModel* m = finish_model_get(handle);
+    if (!m || !m->brdf->anisotropic()) return handle;
+    auto moved = std::make_shared<FinishModel>(*m);
+    moved->tangent = tangent;
+    moved->serial = FinishModel::next_finish_serial();  // views of the original do not fit it
+    const int fresh = finish_model_register(std::move(moved));
+    finish_model_release(handle);
+    return fresh;
+}
+
+int finish_model_max_reflection_samples() {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    int most = 0;
+    for (int h = 1; h < r.next; ++h) {
+        const Slot* s = r.slot(h);
+        if (s && s->refs > 0 && s->owner) most = std::max(most, s->owner->reflection_samples);
+    }
+    return most;
+}
+
 std::size_t finish_model_live_count() {
     Registry& r = registry();
     std::lock_guard<std::mutex> lock(r.mutex);
     return r.live;
 }
 
-Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
-                        const Rgb& pigment) {
+std::uint64_t FinishModel::next_finish_serial() {
+    static std::atomic<std::uint64_t> next{1};
+    return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    v->model = &model;
+    v->serial = model.serial;
+    v->n = n;
+    v->to_eye = to_eye;
+    v->cos_o = dot(n, to_eye);
+    v->sin2_o = 1.0 - v->cos_o * v->cos_o;
     if (model.iso_table) {
-        // Isotropic table: theta_i, theta_r and phi = phi_r - phi_i straight from world vectors.
-        // |sin phi| and cos phi scaled by sin(theta_i) sin(theta_r): the normal component of
-        // l x v, and l.v minus the product of the normal components.
-        const double ci = dot(n, to_light), co = dot(n, to_eye);
+        if (v->cos_o > 0) v->theta_r = model.iso_table->locate_theta_r_cos(v->cos_o, model.iso_interp);
+        return;
+    }
+    v->frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent) : Frame::from_normal(n);
+    v->wo = v->frame.to_local(to_eye);
+}
+
+Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
+    const FinishModel& model = *v.model;
+    if (model.iso_table) {
+        // Isotropic table: cosines straight from world vectors, no frame. cos phi (phi =
+        // phi_r - phi_i) is l.v minus the product of the normal components, over
+        // sin(theta_i) sin(theta_r); at a pole (product 0) phi is undefined and the table's
+        // pole rows do not depend on it.
+        const double ci = dot(v.n, to_light), co = v.cos_o;
         if (!(ci > 0) || !(co > 0)) return Rgb(0.0);
-        const double sp = std::fabs(dot(n, cross(to_light, to_eye)));
-        const double cp = dot(to_light, to_eye) - ci * co;
-        Rgb w = model.iso_table->eval_iso(std::acos(std::min(ci, 1.0)), std::acos(std::min(co, 1.0)),
-                                          std::atan2(sp, cp), model.iso_interp) *
-                (kPi * ci) * model.scale;
+        const double ss = (1.0 - ci * ci) * v.sin2_o;
+        const double cp = ss > 0 ? (dot(to_light, v.to_eye) - ci * co) / std::sqrt(ss) : 1.0;
+        Rgb w = model.iso_table->eval_iso_cos(ci, v.theta_r, cp, model.iso_interp) * (kPi * ci) * model.scale;
         return model.tint ? w * pigment : w;
     }
-    const Frame frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent)
-                                                  : Frame::from_normal(n);
-    Rgb w = pov_weight(*model.brdf, frame.to_local(to_eye), frame.to_local(to_light)) * model.scale;
+    Rgb w = pov_weight(*model.brdf, v.wo, v.frame.to_local(to_light)) * model.scale;
     return model.tint ? w * pigment : w;
+}
+
+Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
+                        const Rgb& pigment) {
+    FinishView v;
+    finish_view(model, n, to_eye, &v);
+    return finish_light_weight(v, to_light, pigment);
 }
 
 Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment) {
@@ -221,6 +268,10 @@ public:
     TableView(std::shared_ptr<const BrdfTable> t, Interp i) : table_(std::move(t)), interp_(i) {}
     Rgb f(const Vec3& wo, const Vec3& wi) const override { return table_->f(wo, wi, interp_); }
     bool anisotropic() const override { return table_->anisotropic(); }
+    // The table's own sampler (built once per table, whatever the interpolation: it covers
+    // every cell where either lookup is positive).
+    Vec3 sample(const Vec3& wo, double u1, double u2) const override { return table_->sample(wo, u1, u2); }
+    double pdf(const Vec3& wo, const Vec3& wi) const override { return table_->pdf(wo, wi); }
     std::string describe() const override { return table_->describe() + " interp=" + to_string(interp_); }
     const BrdfTable& table() const { return *table_; }
     Interp interpolation() const { return interp_; }
@@ -406,8 +457,15 @@ std::shared_ptr<const BrdfTable> shared_table(const std::string& key,
 
 SharedTableStats shared_table_stats() {
     TableCache& c = table_cache();
-    std::lock_guard<std::mutex> lock(c.mutex);
-    return c.stats;
+    SharedTableStats s;
+    {
+        std::lock_guard<std::mutex> lock(c.mutex);
+        s = c.stats;
+    }
+    const TableSampler::Memory m = TableSampler::memory();
+    s.sampler_bytes = m.live;
+    s.peak_sampler_bytes = m.peak;
+    return s;
 }
 
 }  // namespace shading

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "format.h"
+#include "shading/table_sampler.h"
 
 namespace shading {
 
@@ -267,6 +268,39 @@ BrdfTable::BrdfTable(const TableGeometry& geometry, std::vector<float> values, T
     compute_albedo();
 }
 
+BrdfTable::~BrdfTable() = default;
+
+BrdfTable::BrdfTable(const BrdfTable& o)
+    : Brdf(o), geom_(o.geom_), values_(o.values_), info_(o.info_), interp_(o.interp_), albedo_(o.albedo_) {
+    std::copy(o.stride_, o.stride_ + 4, stride_);
+    std::copy(o.inv_step_, o.inv_step_ + 4, inv_step_);
+}
+
+const TableSampler* BrdfTable::sampler() const {
+    if (geom_.layout != TableLayout::Isotropic) return nullptr;
+    if (const TableSampler* s = sampler_ready_.load(std::memory_order_acquire)) return s;
+    std::call_once(sampler_once_, [this] {
+        sampler_ = std::make_unique<const TableSampler>(*this);
+        sampler_ready_.store(sampler_.get(), std::memory_order_release);
+    });
+    return sampler_.get();
+}
+
+size_t BrdfTable::sampler_bytes() const {
+    const TableSampler* s = sampler_ready_.load(std::memory_order_acquire);
+    return s ? s->bytes_used() : 0;
+}
+
+Vec3 BrdfTable::sample(const Vec3& wo, double u1, double u2) const {
+    const TableSampler* s = sampler();
+    return s ? s->sample(wo, u1, u2) : Brdf::sample(wo, u1, u2);
+}
+
+double BrdfTable::pdf(const Vec3& wo, const Vec3& wi) const {
+    const TableSampler* s = sampler();
+    return s ? s->pdf(wo, wi) : Brdf::pdf(wo, wi);
+}
+
 uint64_t BrdfTable::offset(const uint32_t idx[4]) const {
     if (!geom_.folded) {
         uint64_t o = 0;
@@ -345,11 +379,84 @@ Rgb BrdfTable::gather(const AxisPos pos[4], Interp interp) const {
     return C == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
 }
 
+uint64_t BrdfTable::iso_row(uint32_t i, uint32_t r) const {
+    const uint64_t n_phi_values = uint64_t(geom_.n[2]) * uint64_t(geom_.channels);
+    if (!geom_.folded) return (uint64_t(i) * geom_.n[1] + r) * n_phi_values;
+    // Folded: pairs (a <= b) row-major; row a starts after n + (n-1) + ... + (n-a+1) pairs.
+    const uint64_t a = std::min(i, r), b = std::max(i, r), n = geom_.n[0];
+    return (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values;
+}
+
+BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp interp) const {
+    const uint32_t n = geom_.n[axis];
+    double x = deg * inv_step_[axis];
+    const double last = double(n - 1);
+    if (!(x > 0)) x = 0;  // also NaN
+    if (x > last) x = last;
+    if (interp == Interp::Nearest) {
+        const uint32_t i = uint32_t(std::floor(x + 0.5));
+        return {i, i, 0.0};
+    }
+    const uint32_t i0 = std::min(uint32_t(x), n - 2);  // x == last: (n-2, n-1) with weight 1
+    return {i0, i0 + 1, x - double(i0)};
+}
+
+Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
+    const int C = geom_.channels;
+    const float* v = values_.data();
+    if (interp == Interp::Nearest) {
+        const float* p = v + iso_row(pi.i0, pr.i0) + uint64_t(pp.i0) * C;
+        return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
+    }
+    // The eight corners in gather()'s order (theta_i fastest, then theta_r, then phi), each
+    // weight the product of its axis weights in axis order: bit-identical to gather(). The
+    // two phi nodes of a (theta_i, theta_r) pair are neighbours in memory. Weightless corners
+    // are read too (they exist: locate() keeps i0 <= n - 2) and add exactly 0.
+    const double wi[2] = {1.0 - pi.t, pi.t}, wr[2] = {1.0 - pr.t, pr.t}, wp[2] = {1.0 - pp.t, pp.t};
+    const uint64_t p0 = uint64_t(pp.i0) * C, dp = uint64_t(pp.i1 - pp.i0) * C;
+    const float* row[4] = {v + iso_row(pi.i0, pr.i0) + p0, v + iso_row(pi.i1, pr.i0) + p0,
+                           v + iso_row(pi.i0, pr.i1) + p0, v + iso_row(pi.i1, pr.i1) + p0};
+    double acc0 = 0, acc1 = 0, acc2 = 0;
+    for (int ph = 0; ph < 2; ++ph)
+        for (int k = 0; k < 4; ++k) {
+            const double w = wi[k & 1] * wr[k >> 1] * wp[ph];
+            const float* p = row[k] + (ph ? dp : 0);
+            acc0 += w * double(p[0]);
+            if (C == 3) {
+                acc1 += w * double(p[1]);
+                acc2 += w * double(p[2]);
+            }
+        }
+    return C == 1 ? Rgb(acc0) : Rgb(acc0, acc1, acc2);
+}
+
 Rgb BrdfTable::eval_iso(double theta_i, double theta_r, double phi, Interp interp) const {
     if (geom_.layout == TableLayout::Anisotropic) return eval_aniso(theta_i, 0.0, theta_r, phi, interp);
-    AxisPos pos[4] = {locate(0, theta_i * kRadToDeg, interp), locate(1, theta_r * kRadToDeg, interp),
-                      locate(2, phi * kRadToDeg, interp), {0, 0, 0.0}};
-    return gather(pos, interp);
+    double d = phi * kRadToDeg;
+    // f is even in phi and 360-periodic: fold onto [0, 180] (the common case needs nothing).
+    if (!(d >= 0.0 && d <= 180.0)) {
+        d = std::fmod(std::fabs(d), 360.0);
+        if (d > 180.0) d = 360.0 - d;
+    }
+    return gather_iso(locate_in_range(0, theta_i * kRadToDeg, interp), locate_in_range(1, theta_r * kRadToDeg, interp),
+                      locate_in_range(2, d, interp), interp);
+}
+
+Rgb BrdfTable::eval_iso_cos(double cos_i, double cos_r, double cos_phi, Interp interp) const {
+    if (geom_.layout == TableLayout::Anisotropic)
+        return eval_aniso(acos_approx(std::clamp(cos_i, 0.0, 1.0)), 0.0, acos_approx(std::clamp(cos_r, 0.0, 1.0)),
+                          acos_approx(cos_phi), interp);
+    return eval_iso_cos(cos_i, locate_theta_r_cos(cos_r, interp), cos_phi, interp);
+}
+
+BrdfTable::AxisPos BrdfTable::locate_theta_r_cos(double cos_r, Interp interp) const {
+    return locate_in_range(1, acos_approx(std::clamp(cos_r, 0.0, 1.0)) * kRadToDeg, interp);
+}
+
+Rgb BrdfTable::eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const {
+    // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed.
+    return gather_iso(locate_in_range(0, acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg, interp), theta_r,
+                      locate_in_range(2, acos_approx(cos_phi) * kRadToDeg, interp), interp);
 }
 
 Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {

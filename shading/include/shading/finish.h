@@ -67,7 +67,33 @@ struct FinishModel {
     // A `dipole { }` finish: the subsurface light (subsurface.h) the renderer adds at every
     // point, while `brdf` holds its single scattering plus any coat (DipoleSurfaceBrdf).
     std::shared_ptr<const Subsurface> subsurface;
+    // Which model this is, unique in the process (a FinishView remembers it). A copy that
+    // changes anything a view depends on needs a fresh one (next_finish_serial()).
+    std::uint64_t serial = next_finish_serial();
+    static std::uint64_t next_finish_serial();
 };
+
+// What every light at one shading point shares, computed once per hit: the model, the normal
+// and the direction to the eye it was made for, and what the lookup needs of them (the
+// viewer's theta_r position in an isotropic table; otherwise the local frame and the viewer
+// in it). finish_light_weight(view, ...) then costs one table read or model evaluation per
+// light. A view is a pure function of (model, n, to_eye): reusing one or making it afresh
+// gives the same bits.
+struct FinishView {
+    const FinishModel* model = nullptr;
+    std::uint64_t serial = 0;  // model->serial
+    Vec3 n, to_eye;
+    double cos_o = 0, sin2_o = 0;  // n . to_eye and 1 - cos_o^2
+    BrdfTable::AxisPos theta_r;    // isotropic tables
+    Frame frame;                   // other models
+    Vec3 wo;
+    // Whether this view was made for `m` at (n, to_eye), bit for bit.
+    bool is_for(const FinishModel& m, const Vec3& n_, const Vec3& to_eye_) const {
+        return serial == m.serial && n.x == n_.x && n.y == n_.y && n.z == n_.z && to_eye.x == to_eye_.x &&
+               to_eye.y == to_eye_.y && to_eye.z == to_eye_.z;
+    }
+};
+void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* view);
 
 // A finish model around `brdf`, its directional albedo to be computed on first use
 // (AlbedoNodes).
@@ -98,6 +124,9 @@ struct SharedTableStats {
     std::size_t live_tables = 0, live_bytes = 0;  // now
     std::size_t peak_tables = 0, peak_bytes = 0;  // highest since the process started
     std::size_t loads = 0, reuses = 0;            // files read, and requests served from memory
+    // Sampling data of tables that glossy rays (`samples N`) sample (TableSampler, built on
+    // first use, one per table): bytes now and at most.
+    std::size_t sampler_bytes = 0, peak_sampler_bytes = 0;
 };
 SharedTableStats shared_table_stats();
 
@@ -109,10 +138,23 @@ void finish_model_addref(int handle);
 void finish_model_release(int handle);
 const FinishModel* finish_model_get(int handle);
 std::size_t finish_model_live_count();
+// The largest `samples` (reflection_samples) among the live finish models, 0 if none: the
+// parser's estimate of what glossy rays will cost with area lights.
+int finish_model_max_reflection_samples();
+
+// The model of `handle` with its world-space tangent (the anisotropy `direction`) replaced,
+// for finishes that move with their object or texture (POV's transforms): a new registered
+// model sharing the BRDF and its albedo, and the caller's reference moves from `handle` to
+// the returned handle. A model whose BRDF is not anisotropic never reads its tangent and
+// comes back unchanged (same handle); so does handle 0.
+int finish_model_with_tangent(int handle, const Vec3& tangent);
 
 // POV's contribution of one light: pixel += finish_light_weight(...) * light colour.
 // n: unit shading normal; to_eye, to_light: unit vectors leaving the surface (world
 // space). Applies pov_weight() (pi * f * cos_i), the user scale and the optional tint.
+// The renderer makes one FinishView per hit and calls the view form for each light; the
+// other form makes the view itself (same result).
+Rgb finish_light_weight(const FinishView& view, const Vec3& to_light, const Rgb& pigment);
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment);
 
