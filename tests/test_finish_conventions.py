@@ -65,14 +65,14 @@ def test_shadowless_light_keeps_stock_phong(fork, stock):
 # ---------------------------------------------------------------- transforms
 
 #: Orthographic camera along +z, square image: rotating the scene by 90 deg about z maps pixel
-#: centres onto pixel centres. Two parallel lights, rotated with the object in the rotated
-#: render ({turn}); the sphere's finish is anisotropic along x.
+#: centres onto pixel centres. Two parallel lights, rotated with the object (or its texture)
+#: in the rotated render; the sphere's finish is anisotropic, brushed along (1, 0.2, 0).
 ROTATION_SCENE = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 ambient_light 0 }}
 camera {{ orthographic location <0, 0, -10> direction z right x*2.2 up y*2.2 }}
-light_source {{ <-2, 3, -6> * 100 rgb 0.8 parallel point_at 0 {turn} }}
-light_source {{ <4, -1, -5> * 100 rgb 0.5 parallel point_at 0 {turn} }}
-sphere {{ 0, 1 texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 diffuse 0 {finish} }} {texture_turn} }} {turn} }}
+light_source {{ <-2, 3, -6> * 100 rgb 0.8 parallel point_at 0 {light_turn} }}
+light_source {{ <4, -1, -5> * 100 rgb 0.5 parallel point_at 0 {light_turn} }}
+sphere {{ 0, 1 texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 diffuse 0 {finish} }} {texture_turn} }} {object_turn} }}
 """
 ANISO_FINISHES = {
     "ward": 'brdf_model { "ward rho_d=0.1 rho_s=0.4 ax=0.04 ay=0.35" direction <1, 0.2, 0> }',
@@ -82,12 +82,12 @@ ANISO_FINISHES = {
 
 def rotation_pair(fork, finish, how, files=None, size=64):
     """The unrotated render and the render rotated by 90 deg about z (object or texture)."""
-    plain = ROTATION_SCENE.format(finish=finish, turn="", texture_turn="")
+    turn = "rotate z*90"
+    plain = ROTATION_SCENE.format(finish=finish, light_turn="", object_turn="", texture_turn="")
     if how == "object":
-        turned = ROTATION_SCENE.format(finish=finish, turn="rotate z*90", texture_turn="")
-    else:  # the texture turns, the (round) sphere stays; the lights turn with the scene
-        turned = ROTATION_SCENE.format(finish=finish, turn="", texture_turn="rotate z*90")
-        turned = turned.replace("point_at 0 }", "point_at 0 rotate z*90 }")
+        turned = ROTATION_SCENE.format(finish=finish, light_turn=turn, object_turn=turn, texture_turn="")
+    else:  # the texture turns, the (round) sphere need not; the lights turn with the scene
+        turned = ROTATION_SCENE.format(finish=finish, light_turn=turn, object_turn="", texture_turn=turn)
     a = runner.render(plain, fork, width=size, height=size, float_exr=True, files=files).image
     b = runner.render(turned, fork, width=size, height=size, float_exr=True, files=files).image
     return a, b
