@@ -86,7 +86,8 @@ DIST_SCENES = [
 ]
 
 #: Measured on Debian bookworm (gcc 12): every guard scene is bit-identical between stock
-#: (-O3) and the fork (-O2 -fno-fast-math). The bound keeps a little room for a compiler
+#: and the fork, both built with Debian's flags (dpkg-buildflags hardening=+all, -O3; the fork
+#: adds only -fno-fast-math, gcc's default). The bound keeps a little room for a compiler
 #: that rounds one operation differently: at most one half-float ulp (2^-10 relative) in
 #: any sample, and at most 0.1 % of samples different at all. A changed shading path moves
 #: whole regions and fails both.

@@ -5,7 +5,10 @@ fork, often with one of our finishes) and reports the ratio of POV's own *trace*
 (start-up and parsing excluded). Renders alternate baseline/candidate and each ratio is the
 median over ``--repeat`` pairs, so machine noise hits both sides alike. Rows of one *group*
 share their baseline and are measured in interleaved rounds (baseline, then every candidate,
-in a rotating order): each round's ratios divide by that round's baseline.
+in a rotating order): each round's ratios divide by that round's baseline. Two ratios are
+printed: of POV's trace time (wall clock, the goals' measure) and of its trace CPU-seconds
+(summed over render threads), which other work on a shared machine inflates far less; on a
+quiet machine the two agree for one thread.
 
 The speed goals of issue 16 are the ``grid`` rows: 25 spheres (5 x 5, radius 1, spacing 2.2)
 over a plane, one parallel and one point light, orthographic camera, 1536 x 1536, no AA,
@@ -160,6 +163,10 @@ class Result:
     row: Row
     baseline_s: list[float]
     candidate_s: list[float]
+    #: POV's trace CPU-seconds (all render threads) of the same renders: on a shared machine
+    #: other work inflates them far less than the wall-clock trace time
+    baseline_cpu: list[float] = field(default_factory=list)
+    candidate_cpu: list[float] = field(default_factory=list)
 
     @property
     def ratios(self) -> list[float]:
@@ -169,25 +176,47 @@ class Result:
     def ratio(self) -> float:
         return statistics.median(self.ratios)
 
+    @property
+    def cpu_ratio(self) -> Optional[float]:
+        rs = [c / b for b, c in zip(self.baseline_cpu, self.candidate_cpu) if b > 0]
+        return statistics.median(rs) if rs else None
 
-def _trace_time(side: Side, r: Row) -> float:
+
+class _Times(list):
+    """Trace wall seconds, with the CPU-seconds of the same renders alongside."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cpu: list[float] = []
+
+
+def _trace(side: Side, r: Row) -> tuple[float, float]:
+    """(trace wall seconds, trace CPU-seconds) of one render."""
     res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=r.threads,
                         files=side.resolved_files())
     if res.trace_seconds is None:
         raise RuntimeError(f"{r.name}: POV printed no trace time")
-    return res.trace_seconds
+    return res.trace_seconds, float(res.stats.get("trace_cpu_time", res.trace_seconds))
+
+
+def _trace_time(side: Side, r: Row, into: Optional[_Times] = None) -> float:
+    wall, cpu = _trace(side, r)
+    if into is not None:
+        into.append(wall)
+        into.cpu.append(cpu)
+    return wall
 
 
 def measure(r: Row, repeat: int = 5, log: Optional[Callable[[str], None]] = None) -> Result:
     """Alternate baseline and candidate renders ``repeat`` times (after one warm-up pair)."""
     _trace_time(r.baseline, r), _trace_time(r.candidate, r)  # warm file caches
-    base, cand = [], []
+    base, cand = _Times(), _Times()
     for i in range(repeat):
-        base.append(_trace_time(r.baseline, r))
-        cand.append(_trace_time(r.candidate, r))
+        _trace_time(r.baseline, r, base)
+        _trace_time(r.candidate, r, cand)
         if log:
             log(f"  {r.name} [{i + 1}/{repeat}] {base[-1]:.3f} s vs {cand[-1]:.3f} s")
-    return Result(r, base, cand)
+    return Result(r, list(base), list(cand), base.cpu, cand.cpu)
 
 
 def measure_group(rows: Sequence[Row], repeat: int = 5,
@@ -203,17 +232,17 @@ def measure_group(rows: Sequence[Row], repeat: int = 5,
     _trace_time(first.baseline, first)
     for r in rows:
         _trace_time(r.candidate, r)  # warm file caches and table caches
-    base: list[float] = []
-    cand: list[list[float]] = [[] for _ in rows]
+    base = _Times()
+    cand = [_Times() for _ in rows]
     for i in range(repeat):
-        base.append(_trace_time(first.baseline, first))
+        _trace_time(first.baseline, first, base)
         for k in range(len(rows)):
             j = (k + i) % len(rows)
-            cand[j].append(_trace_time(rows[j].candidate, rows[j]))
+            _trace_time(rows[j].candidate, rows[j], cand[j])
         if log:
             log(f"  {first.group} [{i + 1}/{repeat}] baseline {base[-1]:.3f} s, " +
                 ", ".join(f"{c[-1]:.3f}" for c in cand))
-    return [Result(r, list(base), c) for r, c in zip(rows, cand)]
+    return [Result(r, list(base), list(c), list(base.cpu), list(c.cpu)) for r, c in zip(rows, cand)]
 
 
 def measure_all(rows: Sequence[Row], repeat: int = 5,
@@ -230,14 +259,17 @@ def measure_all(rows: Sequence[Row], repeat: int = 5,
 
 
 def format_table(results: Sequence[Result]) -> str:
+    """Medians of the per-round ratios of trace wall time (``ratio``, with its spread) and of
+    trace CPU-seconds (``cpu ratio``)."""
     w = max([len(x.row.name) for x in results] + [4])
-    lines = [f"{'row':<{w}}  {'baseline s':>10}  {'candidate s':>11}  {'ratio':>6}  {'spread':>13}  note",
-             "-" * (w + 60)]
+    lines = [f"{'row':<{w}}  {'baseline s':>10}  {'candidate s':>11}  {'ratio':>6}  {'spread':>13}  "
+             f"{'cpu ratio':>9}  note", "-" * (w + 71)]
     for x in results:
         rs = x.ratios
+        cpu = f"{x.cpu_ratio:9.3f}" if x.cpu_ratio is not None else f"{'-':>9}"
         lines.append(f"{x.row.name:<{w}}  {statistics.median(x.baseline_s):10.3f}  "
                      f"{statistics.median(x.candidate_s):11.3f}  {x.ratio:6.3f}  "
-                     f"{min(rs):6.3f}..{max(rs):6.3f}  {x.row.note}")
+                     f"{min(rs):6.3f}..{max(rs):6.3f}  {cpu}  {x.row.note}")
     return "\n".join(lines)
 
 

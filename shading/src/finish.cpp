@@ -155,6 +155,7 @@ void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, Fi
     }
     v->frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent) : Frame::from_normal(n);
     v->wo = v->frame.to_local(to_eye);
+    model.brdf->prepare_view(v->wo, &v->brdf);
 }
 
 Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
@@ -171,7 +172,7 @@ Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pi
         Rgb w = model.iso_table->eval_iso_cos(ci, v.theta_r, cp, model.iso_interp) * (kPi * ci) * model.scale;
         return model.tint ? w * pigment : w;
     }
-    Rgb w = pov_weight(*model.brdf, v.wo, v.frame.to_local(to_light)) * model.scale;
+    Rgb w = pov_weight(*model.brdf, v.wo, v.frame.to_local(to_light), v.brdf) * model.scale;
     return model.tint ? w * pigment : w;
 }
 

@@ -387,47 +387,57 @@ uint64_t BrdfTable::iso_row(uint32_t i, uint32_t r) const {
     return (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values;
 }
 
-BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp interp) const {
-    const uint32_t n = geom_.n[axis];
-    double x = deg * inv_step_[axis];
+namespace {
+// A position x (in nodes) on an axis of n nodes that is not periodic: clamped to [0, n - 1];
+// the nearest node (ties up: x >= 0, so truncating x + 0.5 is floor), or the two nodes around
+// it and the weight of the upper one (x == n - 1: (n - 2, n - 1) with weight 1).
+inline BrdfTable::AxisPos locate_nodes(double x, uint32_t n, Interp interp) {
     const double last = double(n - 1);
     if (!(x > 0)) x = 0;  // also NaN
     if (x > last) x = last;
     if (interp == Interp::Nearest) {
-        const uint32_t i = uint32_t(std::floor(x + 0.5));
+        const uint32_t i = uint32_t(x + 0.5);
         return {i, i, 0.0};
     }
-    const uint32_t i0 = std::min(uint32_t(x), n - 2);  // x == last: (n-2, n-1) with weight 1
+    const uint32_t i0 = std::min(uint32_t(x), n - 2);
     return {i0, i0 + 1, x - double(i0)};
 }
+}  // namespace
 
-Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
+BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp interp) const {
+    return locate_nodes(deg * inv_step_[axis], geom_.n[axis], interp);
+}
+
+inline Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
     const int C = geom_.channels;
     const float* v = values_.data();
     if (interp == Interp::Nearest) {
         const float* p = v + iso_row(pi.i0, pr.i0) + uint64_t(pp.i0) * C;
         return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
     }
-    // The eight corners in gather()'s order (theta_i fastest, then theta_r, then phi), each
-    // weight the product of its axis weights in axis order: bit-identical to gather(). The
-    // two phi nodes of a (theta_i, theta_r) pair are neighbours in memory. Weightless corners
-    // are read too (they exist: locate() keeps i0 <= n - 2) and add exactly 0.
-    const double wi[2] = {1.0 - pi.t, pi.t}, wr[2] = {1.0 - pr.t, pr.t}, wp[2] = {1.0 - pp.t, pp.t};
+    // Trilinear as three rounds of linear interpolation a + t (b - a): phi inside each of the
+    // four (theta_i, theta_r) rows, then theta_i, then theta_r (about half the arithmetic of
+    // gather()'s eight weighted corners, and a shorter dependency chain on the renderer's
+    // per-light path). t = 0 returns a node exactly; t = 1 returns it to within the rounding
+    // of b - a (exact unless the two values differ by 2^29 or more). The two phi nodes of a
+    // row are neighbours in memory; locate keeps i0 <= n - 2, so every read is inside.
     const uint64_t p0 = uint64_t(pp.i0) * C, dp = uint64_t(pp.i1 - pp.i0) * C;
-    const float* row[4] = {v + iso_row(pi.i0, pr.i0) + p0, v + iso_row(pi.i1, pr.i0) + p0,
-                           v + iso_row(pi.i0, pr.i1) + p0, v + iso_row(pi.i1, pr.i1) + p0};
-    double acc0 = 0, acc1 = 0, acc2 = 0;
-    for (int ph = 0; ph < 2; ++ph)
-        for (int k = 0; k < 4; ++k) {
-            const double w = wi[k & 1] * wr[k >> 1] * wp[ph];
-            const float* p = row[k] + (ph ? dp : 0);
-            acc0 += w * double(p[0]);
-            if (C == 3) {
-                acc1 += w * double(p[1]);
-                acc2 += w * double(p[2]);
-            }
-        }
-    return C == 1 ? Rgb(acc0) : Rgb(acc0, acc1, acc2);
+    // iso_row() written out, so the four rows cost a few integer operations each.
+    const uint64_t n_phi_values = uint64_t(geom_.n[2]) * uint64_t(C), n = geom_.n[0], n1 = geom_.n[1];
+    const bool folded = geom_.folded;
+    auto row_of = [&](uint64_t i, uint64_t r) {
+        if (!folded) return v + (i * n1 + r) * n_phi_values + p0;
+        const uint64_t a = i < r ? i : r, b = i < r ? r : i;
+        return v + (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values + p0;
+    };
+    const float* row[4] = {row_of(pi.i0, pr.i0), row_of(pi.i1, pr.i0), row_of(pi.i0, pr.i1), row_of(pi.i1, pr.i1)};
+    auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
+    auto channel = [&](int c) {
+        double r[4];
+        for (int k = 0; k < 4; ++k) r[k] = lerp(double(row[k][c]), double(row[k][dp + c]), pp.t);
+        return lerp(lerp(r[0], r[1], pi.t), lerp(r[2], r[3], pi.t), pr.t);
+    };
+    return C == 1 ? Rgb(channel(0)) : Rgb(channel(0), channel(1), channel(2));
 }
 
 Rgb BrdfTable::eval_iso(double theta_i, double theta_r, double phi, Interp interp) const {
@@ -454,9 +464,11 @@ BrdfTable::AxisPos BrdfTable::locate_theta_r_cos(double cos_r, Interp interp) co
 }
 
 Rgb BrdfTable::eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const {
-    // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed.
-    return gather_iso(locate_in_range(0, acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg, interp), theta_r,
-                      locate_in_range(2, acos_approx(cos_phi) * kRadToDeg, interp), interp);
+    // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed. Written
+    // out (locate and gather inlined): this is the renderer's per-light path.
+    const AxisPos ti = locate_nodes(acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg * inv_step_[0], geom_.n[0], interp);
+    const AxisPos phi = locate_nodes(acos_approx(cos_phi) * kRadToDeg * inv_step_[2], geom_.n[2], interp);
+    return gather_iso(ti, theta_r, phi, interp);
 }
 
 Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {

@@ -87,6 +87,7 @@ struct FinishView {
     BrdfTable::AxisPos theta_r;    // isotropic tables
     Frame frame;                   // other models
     Vec3 wo;
+    BrdfViewCache brdf;            //   and what the model keeps of wo (Brdf::prepare_view)
     // Whether this view was made for `m` at (n, to_eye), bit for bit.
     bool is_for(const FinishModel& m, const Vec3& n_, const Vec3& to_eye_) const {
         return serial == m.serial && n.x == n_.x && n.y == n_.y && n.z == n_.z && to_eye.x == to_eye_.x &&
@@ -158,9 +159,10 @@ Rgb finish_light_weight(const FinishView& view, const Vec3& to_light, const Rgb&
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment);
 
-// Lights for which POV computes no highlight (radiosity gather rays, fill lights): the model
-// acts as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos
-// (by reciprocity the light's reflectance; approximate for POV's non-reciprocal phong/specular).
+// Lights seen by radiosity gather rays (for which POV computes no highlight): the model acts
+// as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos (by
+// reciprocity the light's reflectance; approximate for POV's non-reciprocal phong/specular).
+// Fill (shadowless) lights get the full model (finish_light_weight), unlike POV's highlights.
 Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment);
 
 // Indirect (radiosity) light: uniform incident light reflects a(theta_eye) of it, so POV's

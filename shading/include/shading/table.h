@@ -170,8 +170,8 @@ private:
     AxisPos locate_in_range(int axis, double deg, Interp interp) const;
     uint64_t offset(const uint32_t idx[4]) const;  // of channel 0, in floats
     Rgb gather(const AxisPos pos[4], Interp interp) const;
-    // Isotropic lookup at positions on the three axes: gather() unrolled (the same sums in
-    // the same order, so the same bits).
+    // Isotropic lookup at positions on the three axes: trilinear by nested linear
+    // interpolation (the same function as gather(), within rounding).
     Rgb gather_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp) const;
     uint64_t iso_row(uint32_t i, uint32_t r) const;  // offset of (i, r, phi 0), channel 0
     void average_poles();
