@@ -145,6 +145,7 @@ std::uint64_t FinishModel::next_finish_serial() {
 void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* v) {
     v->model = &model;
     v->serial = model.serial;
+    v->pending.valid = false;  // a prefetched light belongs to the view it was made in
     v->n = n;
     v->to_eye = to_eye;
     v->cos_o = dot(n, to_eye);
@@ -158,18 +159,47 @@ void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, Fi
     model.brdf->prepare_view(v->wo, &v->brdf);
 }
 
+namespace {
+// Isotropic table: cosines straight from world vectors, no frame. cos phi (phi = phi_r -
+// phi_i) is l.v minus the product of the normal components, over sin(theta_i) sin(theta_r);
+// at a pole (product 0) phi is undefined and the table's pole rows do not depend on it.
+// False when the light or the viewer is below the surface.
+bool table_cosines(const FinishView& v, const Vec3& to_light, double* ci, double* cp) {
+    *ci = dot(v.n, to_light);
+    if (!(*ci > 0) || !(v.cos_o > 0)) return false;
+    const double ss = (1.0 - *ci * *ci) * v.sin2_o;
+    *cp = ss > 0 ? (dot(to_light, v.to_eye) - *ci * v.cos_o) / std::sqrt(ss) : 1.0;
+    return true;
+}
+bool same(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
+}  // namespace
+
+void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
+    const FinishModel& model = *v->model;
+    v->pending.valid = false;
+    if (!model.iso_table) return;
+    FinishView::Pending& p = v->pending;
+    if (!table_cosines(*v, to_light, &p.cos_i, &p.cos_phi)) return;
+    model.iso_table->locate_iso_cos(p.cos_i, p.cos_phi, model.iso_interp, &p.theta_i, &p.phi);
+    model.iso_table->prefetch_iso(p.theta_i, v->theta_r, p.phi, model.iso_interp);
+    p.to_light = to_light;
+    p.valid = true;
+}
+
 Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
     const FinishModel& model = *v.model;
     if (model.iso_table) {
-        // Isotropic table: cosines straight from world vectors, no frame. cos phi (phi =
-        // phi_r - phi_i) is l.v minus the product of the normal components, over
-        // sin(theta_i) sin(theta_r); at a pole (product 0) phi is undefined and the table's
-        // pole rows do not depend on it.
-        const double ci = dot(v.n, to_light), co = v.cos_o;
-        if (!(ci > 0) || !(co > 0)) return Rgb(0.0);
-        const double ss = (1.0 - ci * ci) * v.sin2_o;
-        const double cp = ss > 0 ? (dot(to_light, v.to_eye) - ci * co) / std::sqrt(ss) : 1.0;
-        Rgb w = model.iso_table->eval_iso_cos(ci, v.theta_r, cp, model.iso_interp) * (kPi * ci) * model.scale;
+        Rgb f;
+        double ci;
+        if (v.pending.valid && same(v.pending.to_light, to_light)) {
+            ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
+            f = model.iso_table->eval_iso(v.pending.theta_i, v.theta_r, v.pending.phi, model.iso_interp);
+        } else {
+            double cp;
+            if (!table_cosines(v, to_light, &ci, &cp)) return Rgb(0.0);
+            f = model.iso_table->eval_iso_cos(ci, v.theta_r, cp, model.iso_interp);
+        }
+        Rgb w = f * (kPi * ci) * model.scale;
         return model.tint ? w * pigment : w;
     }
     Rgb w = pov_weight(*model.brdf, v.wo, v.frame.to_local(to_light), v.brdf) * model.scale;

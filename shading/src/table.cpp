@@ -464,11 +464,41 @@ BrdfTable::AxisPos BrdfTable::locate_theta_r_cos(double cos_r, Interp interp) co
 }
 
 Rgb BrdfTable::eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const {
-    // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed. Written
-    // out (locate and gather inlined): this is the renderer's per-light path.
-    const AxisPos ti = locate_nodes(acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg * inv_step_[0], geom_.n[0], interp);
-    const AxisPos phi = locate_nodes(acos_approx(cos_phi) * kRadToDeg * inv_step_[2], geom_.n[2], interp);
+    AxisPos ti, phi;
+    locate_iso_cos(cos_i, cos_phi, interp, &ti, &phi);
     return gather_iso(ti, theta_r, phi, interp);
+}
+
+void BrdfTable::locate_iso_cos(double cos_i, double cos_phi, Interp interp, AxisPos* ti, AxisPos* phi) const {
+    // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed.
+    *ti = locate_nodes(acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg * inv_step_[0], geom_.n[0], interp);
+    *phi = locate_nodes(acos_approx(cos_phi) * kRadToDeg * inv_step_[2], geom_.n[2], interp);
+}
+
+void BrdfTable::prefetch_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
+#if defined(__GNUC__)
+    // The first float of each (theta_i, theta_r) row segment the lookup reads, and its last
+    // (the segment, 2 phi nodes x channels, may cross a cache line).
+    const uint64_t C = uint64_t(geom_.channels), last = uint64_t(pp.i1 - pp.i0 + 1) * C - 1;
+    const float* v = values_.data() + uint64_t(pp.i0) * C;
+    auto touch = [&](uint32_t i, uint32_t r) {
+        const float* p = v + iso_row(i, r);
+        __builtin_prefetch(p);
+        __builtin_prefetch(p + last);
+    };
+    touch(pi.i0, pr.i0);
+    if (interp == Interp::Linear) {
+        touch(pi.i1, pr.i0);
+        touch(pi.i0, pr.i1);
+        touch(pi.i1, pr.i1);
+    }
+#else
+    (void)pi, (void)pr, (void)pp, (void)interp;
+#endif
+}
+
+Rgb BrdfTable::eval_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp) const {
+    return gather_iso(ti, tr, phi, interp);
 }
 
 Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {

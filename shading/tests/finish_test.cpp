@@ -429,3 +429,34 @@ TEST(FinishRegistry, MaxReflectionSamplesOfLiveModels) {
     finish_model_release(h);
     EXPECT_EQ(finish_model_max_reflection_samples(), before);
 }
+
+TEST(Finish, PrefetchedLightGivesTheSameBits) {
+    // finish_light_prefetch locates a light (and prefetches its cells) before the renderer's
+    // shadow test; finish_light_weight then reuses that, or recomputes for any other light.
+    BuildOptions fold;
+    fold.fold = true;
+    std::shared_ptr<const BrdfTable> t =
+        build_table(tabulate(*make_brdf("microfacet d=beckmann m=0.2 kd=0.3 rho_s=0.7"), TableGeometry::isotropic(2.0)), fold);
+    for (Interp interp : {Interp::Linear, Interp::Nearest}) {
+        auto m = make_finish_model(table_brdf(t, interp));
+        const Vec3 n = normalize(Vec3(0.1, 0.2, 1.0)), eye = normalize(Vec3(0.4, -0.3, 1.0));
+        FinishView v;
+        finish_view(*m, n, eye, &v);
+        for (int k = 0; k < 200; ++k) {
+            const Vec3 l = normalize(Vec3(std::sin(0.37 * k), std::cos(0.53 * k), 0.2 + 0.01 * k));
+            const Rgb plain = finish_light_weight(*m, n, eye, l, Rgb(1.0));
+            finish_light_prefetch(&v, l);
+            const Rgb pre = finish_light_weight(v, l, Rgb(1.0));
+            ASSERT_EQ(pre.r, plain.r);
+            ASSERT_EQ(pre.b, plain.b);
+            const Vec3 other = normalize(l + Vec3(0.01, 0, 0));  // not the prefetched light
+            ASSERT_EQ(finish_light_weight(v, other, Rgb(1.0)).g, finish_light_weight(*m, n, eye, other, Rgb(1.0)).g);
+        }
+        finish_light_prefetch(&v, normalize(Vec3(0.3, 0.1, 1.0)));
+        EXPECT_TRUE(v.pending.valid);
+        finish_view(*m, n, normalize(Vec3(0, 0.5, 1.0)), &v);  // another hit: the prefetch is gone
+        EXPECT_FALSE(v.pending.valid);
+        finish_light_prefetch(&v, Vec3(0, 0, -1));  // a light below the surface: nothing to read
+        EXPECT_FALSE(v.pending.valid);
+    }
+}

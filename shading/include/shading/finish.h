@@ -88,6 +88,13 @@ struct FinishView {
     Frame frame;                   // other models
     Vec3 wo;
     BrdfViewCache brdf;            //   and what the model keeps of wo (Brdf::prepare_view)
+    // The light finish_light_prefetch was last asked about, and its table coordinates.
+    struct Pending {
+        Vec3 to_light;
+        bool valid = false;
+        double cos_i = 0, cos_phi = 0;
+        BrdfTable::AxisPos theta_i, phi;
+    } pending;
     // Whether this view was made for `m` at (n, to_eye), bit for bit.
     bool is_for(const FinishModel& m, const Vec3& n_, const Vec3& to_eye_) const {
         return serial == m.serial && n.x == n_.x && n.y == n_.y && n.z == n_.z && to_eye.x == to_eye_.x &&
@@ -156,6 +163,11 @@ int finish_model_with_tangent(int handle, const Vec3& tangent);
 // The renderer makes one FinishView per hit and calls the view form for each light; the
 // other form makes the view itself (same result).
 Rgb finish_light_weight(const FinishView& view, const Vec3& to_light, const Rgb& pigment);
+// Starts reading the table cells a light will need (isotropic tables; a no-op otherwise) and
+// remembers their coordinates in the view: called before the renderer's shadow test, it lets
+// the memory latency of the read overlap the test; finish_light_weight for the same light
+// then uses them (the same bits as without).
+void finish_light_prefetch(FinishView* view, const Vec3& to_light);
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment);
 

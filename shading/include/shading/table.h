@@ -147,6 +147,11 @@ public:
     };
     AxisPos locate_theta_r_cos(double cos_r, Interp interp) const;
     Rgb eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const;
+    // The same in three steps: the light's positions on the theta_i and phi axes, a prefetch
+    // of the memory the lookup will read (to overlap its latency with other work), the lookup.
+    void locate_iso_cos(double cos_i, double cos_phi, Interp interp, AxisPos* theta_i, AxisPos* phi) const;
+    void prefetch_iso(const AxisPos& theta_i, const AxisPos& theta_r, const AxisPos& phi, Interp interp) const;
+    Rgb eval_iso(const AxisPos& theta_i, const AxisPos& theta_r, const AxisPos& phi, Interp interp) const;
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
     float node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const;
