@@ -50,7 +50,12 @@ Registry& registry() {
     return r;
 }
 
+// Changes whenever a handle starts or stops naming a model (finish_model_generation).
+std::atomic<std::uint64_t> g_generation{1};
+
 }  // namespace
+
+std::uint64_t finish_model_generation() { return g_generation.load(std::memory_order_acquire); }
 
 int finish_model_register(std::shared_ptr<const FinishModel> model) {
     if (!model || !model->brdf) throw std::invalid_argument("finish model without a BRDF");
@@ -75,6 +80,7 @@ int finish_model_register(std::shared_ptr<const FinishModel> model) {
     s->refs = 1;
     s->model.store(s->owner.get(), std::memory_order_release);
     ++r.live;
+    g_generation.fetch_add(1, std::memory_order_acq_rel);
     return handle;
 }
 
@@ -100,6 +106,7 @@ void finish_model_release(int handle) {
             last = std::move(s->owner);
             r.free_handles.push_back(handle);
             --r.live;
+            g_generation.fetch_add(1, std::memory_order_acq_rel);
         }
     }
 }
@@ -142,7 +149,20 @@ std::uint64_t FinishModel::next_finish_serial() {
     return next.fetch_add(1, std::memory_order_relaxed);
 }
 
+const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    const std::uint64_t generation = finish_model_generation();
+    if (v->handle == handle && v->generation == generation && v->model && v->is_for(*v->model, n, to_eye)) return v;
+    const FinishModel* model = finish_model_get(handle);
+    if (!model) return nullptr;
+    finish_view(*model, n, to_eye, v);
+    v->handle = handle;
+    v->generation = generation;
+    return v;
+}
+
 void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    v->handle = 0;  // made from a model, not a handle (finish_view_of sets these)
+    v->generation = 0;
     v->model = &model;
     v->serial = model.serial;
     v->pending.valid = false;  // a prefetched light belongs to the view it was made in

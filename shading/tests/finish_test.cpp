@@ -460,3 +460,28 @@ TEST(Finish, PrefetchedLightGivesTheSameBits) {
         EXPECT_FALSE(v.pending.valid);
     }
 }
+
+TEST(FinishRegistry, ViewOfAHandleNeedsNoLookupUntilTheRegistryChanges) {
+    auto m = make_finish_model(make_brdf("microfacet d=beckmann m=0.3"));
+    const int h = finish_model_register(m);
+    const Vec3 n(0, 0, 1), eye = normalize(Vec3(0.2, 0.1, 1.0));
+    FinishView v;
+    ASSERT_EQ(finish_view_of(h, n, eye, &v), &v);
+    EXPECT_EQ(v.model, m.get());
+    EXPECT_EQ(v.handle, h);
+    const std::uint64_t g = v.generation;
+    EXPECT_EQ(g, finish_model_generation());
+    ASSERT_EQ(finish_view_of(h, n, eye, &v), &v);  // same key: kept
+    EXPECT_EQ(v.generation, g);
+    // Another registration changes the generation: the next call looks the handle up again.
+    const int other = finish_model_register(make_finish_model(make_brdf("lambert")));
+    EXPECT_NE(finish_model_generation(), g);
+    ASSERT_EQ(finish_view_of(h, n, eye, &v), &v);
+    EXPECT_EQ(v.model, m.get());
+    EXPECT_EQ(v.generation, finish_model_generation());
+    finish_model_release(other);
+    // A released handle has no model: no view.
+    finish_model_release(h);
+    EXPECT_EQ(finish_view_of(h, n, eye, &v), nullptr);
+    EXPECT_EQ(finish_view_of(0, n, eye, &v), nullptr);
+}

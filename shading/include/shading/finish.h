@@ -82,6 +82,8 @@ struct FinishModel {
 struct FinishView {
     const FinishModel* model = nullptr;
     std::uint64_t serial = 0;  // model->serial
+    int handle = 0;                  // finish_view_of: the handle it was made for, and the
+    std::uint64_t generation = 0;    //   registry generation then
     Vec3 n, to_eye;
     double cos_o = 0, sin2_o = 0;  // n . to_eye and 1 - cos_o^2
     BrdfTable::AxisPos theta_r;    // isotropic tables
@@ -102,6 +104,10 @@ struct FinishView {
     }
 };
 void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* view);
+// The renderer's form, per light: `view` itself when it was made for this handle, normal and
+// eye and no handle has changed its model since (finish_model_generation: no registry
+// lookup), else remade; null for a handle without a model.
+const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& to_eye, FinishView* view);
 
 // A finish model around `brdf`, its directional albedo to be computed on first use
 // (AlbedoNodes).
@@ -149,6 +155,9 @@ std::size_t finish_model_live_count();
 // The largest `samples` (reflection_samples) among the live finish models, 0 if none: the
 // parser's estimate of what glossy rays will cost with area lights.
 int finish_model_max_reflection_samples();
+// A number that changes whenever some handle starts or stops naming a model (registration,
+// last release): a handle read at one generation names the same model while it is current.
+std::uint64_t finish_model_generation();
 
 // The model of `handle` with its world-space tangent (the anisotropy `direction`) replaced,
 // for finishes that move with their object or texture (POV's transforms): a new registered
