@@ -50,12 +50,10 @@ Registry& registry() {
     return r;
 }
 
-// Changes whenever a handle starts or stops naming a model (finish_model_generation).
-std::atomic<std::uint64_t> g_generation{1};
-
 }  // namespace
 
-std::uint64_t finish_model_generation() { return g_generation.load(std::memory_order_acquire); }
+// Changes whenever a handle starts or stops naming a model (finish_model_generation).
+std::atomic<std::uint64_t> detail::finish_generation{1};
 
 int finish_model_register(std::shared_ptr<const FinishModel> model) {
     if (!model || !model->brdf) throw std::invalid_argument("finish model without a BRDF");
@@ -80,7 +78,7 @@ int finish_model_register(std::shared_ptr<const FinishModel> model) {
     s->refs = 1;
     s->model.store(s->owner.get(), std::memory_order_release);
     ++r.live;
-    g_generation.fetch_add(1, std::memory_order_acq_rel);
+    detail::finish_generation.fetch_add(1, std::memory_order_acq_rel);
     return handle;
 }
 
@@ -106,7 +104,7 @@ void finish_model_release(int handle) {
             last = std::move(s->owner);
             r.free_handles.push_back(handle);
             --r.live;
-            g_generation.fetch_add(1, std::memory_order_acq_rel);
+            detail::finish_generation.fetch_add(1, std::memory_order_acq_rel);
         }
     }
 }
@@ -149,9 +147,8 @@ std::uint64_t FinishModel::next_finish_serial() {
     return next.fetch_add(1, std::memory_order_relaxed);
 }
 
-const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+const FinishView* finish_view_remake(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
     const std::uint64_t generation = finish_model_generation();
-    if (v->handle == handle && v->generation == generation && v->model && v->is_for(*v->model, n, to_eye)) return v;
     const FinishModel* model = finish_model_get(handle);
     if (!model) return nullptr;
     finish_view(*model, n, to_eye, v);
@@ -199,9 +196,9 @@ void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
     v->pending.valid = false;
     if (!model.iso_table) return;
     FinishView::Pending& p = v->pending;
-    if (!table_cosines(*v, to_light, &p.cos_i, &p.cos_phi)) return;
-    model.iso_table->locate_iso_cos(p.cos_i, p.cos_phi, model.iso_interp, &p.theta_i, &p.phi);
-    model.iso_table->prefetch_iso(p.theta_i, v->theta_r, p.phi, model.iso_interp);
+    double cos_phi;
+    if (!table_cosines(*v, to_light, &p.cos_i, &cos_phi)) return;
+    model.iso_table->prepare_iso_cos(p.cos_i, v->theta_r, cos_phi, model.iso_interp, &p.read);
     p.to_light = to_light;
     p.valid = true;
 }
@@ -213,7 +210,7 @@ Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pi
         double ci;
         if (v.pending.valid && same(v.pending.to_light, to_light)) {
             ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
-            f = model.iso_table->eval_iso(v.pending.theta_i, v.theta_r, v.pending.phi, model.iso_interp);
+            f = BrdfTable::read_iso(v.pending.read);
         } else {
             double cp;
             if (!table_cosines(v, to_light, &ci, &cp)) return Rgb(0.0);

@@ -379,14 +379,6 @@ Rgb BrdfTable::gather(const AxisPos pos[4], Interp interp) const {
     return C == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
 }
 
-uint64_t BrdfTable::iso_row(uint32_t i, uint32_t r) const {
-    const uint64_t n_phi_values = uint64_t(geom_.n[2]) * uint64_t(geom_.channels);
-    if (!geom_.folded) return (uint64_t(i) * geom_.n[1] + r) * n_phi_values;
-    // Folded: pairs (a <= b) row-major; row a starts after n + (n-1) + ... + (n-a+1) pairs.
-    const uint64_t a = std::min(i, r), b = std::max(i, r), n = geom_.n[0];
-    return (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values;
-}
-
 namespace {
 // A position x (in nodes) on an axis of n nodes that is not periodic: clamped to [0, n - 1];
 // the nearest node (ties up: x >= 0, so truncating x + 0.5 is floor), or the two nodes around
@@ -408,11 +400,36 @@ BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp inter
     return locate_nodes(deg * inv_step_[axis], geom_.n[axis], interp);
 }
 
-inline Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
-    const int C = geom_.channels;
-    const float* v = values_.data();
-    if (interp == Interp::Nearest) {
-        const float* p = v + iso_row(pi.i0, pr.i0) + uint64_t(pp.i0) * C;
+inline void BrdfTable::rows_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp,
+                                IsoRead* rd) const {
+    // Row offsets written out, so each row costs a few integer operations.
+    const uint64_t C = uint64_t(geom_.channels), n_phi_values = uint64_t(geom_.n[2]) * C;
+    const uint64_t n = geom_.n[0], n1 = geom_.n[1];
+    const float* v = values_.data() + uint64_t(pp.i0) * C;
+    const bool folded = geom_.folded;
+    auto row_of = [&](uint64_t i, uint64_t r) {
+        if (!folded) return v + (i * n1 + r) * n_phi_values;
+        // Folded: pairs (a <= b) row-major; row a starts after n + (n-1) + ... + (n-a+1) pairs.
+        const uint64_t a = i < r ? i : r, b = i < r ? r : i;
+        return v + (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values;
+    };
+    rd->channels = int(C);
+    rd->nearest = interp == Interp::Nearest;
+    rd->row[0] = row_of(pi.i0, pr.i0);
+    if (rd->nearest) return;
+    rd->row[1] = row_of(pi.i1, pr.i0);
+    rd->row[2] = row_of(pi.i0, pr.i1);
+    rd->row[3] = row_of(pi.i1, pr.i1);
+    rd->dphi = uint32_t((pp.i1 - pp.i0) * C);
+    rd->t_i = pi.t;
+    rd->t_r = pr.t;
+    rd->t_phi = pp.t;
+}
+
+Rgb BrdfTable::read_iso(const IsoRead& rd) {
+    const int C = rd.channels;
+    if (rd.nearest) {
+        const float* p = rd.row[0];
         return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
     }
     // Trilinear as three rounds of linear interpolation a + t (b - a): phi inside each of the
@@ -421,23 +438,19 @@ inline Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const Axi
     // per-light path). t = 0 returns a node exactly; t = 1 returns it to within the rounding
     // of b - a (exact unless the two values differ by 2^29 or more). The two phi nodes of a
     // row are neighbours in memory; locate keeps i0 <= n - 2, so every read is inside.
-    const uint64_t p0 = uint64_t(pp.i0) * C, dp = uint64_t(pp.i1 - pp.i0) * C;
-    // iso_row() written out, so the four rows cost a few integer operations each.
-    const uint64_t n_phi_values = uint64_t(geom_.n[2]) * uint64_t(C), n = geom_.n[0], n1 = geom_.n[1];
-    const bool folded = geom_.folded;
-    auto row_of = [&](uint64_t i, uint64_t r) {
-        if (!folded) return v + (i * n1 + r) * n_phi_values + p0;
-        const uint64_t a = i < r ? i : r, b = i < r ? r : i;
-        return v + (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values + p0;
-    };
-    const float* row[4] = {row_of(pi.i0, pr.i0), row_of(pi.i1, pr.i0), row_of(pi.i0, pr.i1), row_of(pi.i1, pr.i1)};
     auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
     auto channel = [&](int c) {
         double r[4];
-        for (int k = 0; k < 4; ++k) r[k] = lerp(double(row[k][c]), double(row[k][dp + c]), pp.t);
-        return lerp(lerp(r[0], r[1], pi.t), lerp(r[2], r[3], pi.t), pr.t);
+        for (int k = 0; k < 4; ++k) r[k] = lerp(double(rd.row[k][c]), double(rd.row[k][rd.dphi + c]), rd.t_phi);
+        return lerp(lerp(r[0], r[1], rd.t_i), lerp(r[2], r[3], rd.t_i), rd.t_r);
     };
     return C == 1 ? Rgb(channel(0)) : Rgb(channel(0), channel(1), channel(2));
+}
+
+inline Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
+    IsoRead rd;
+    rows_iso(pi, pr, pp, interp, &rd);
+    return read_iso(rd);
 }
 
 Rgb BrdfTable::eval_iso(double theta_i, double theta_r, double phi, Interp interp) const {
@@ -464,41 +477,24 @@ BrdfTable::AxisPos BrdfTable::locate_theta_r_cos(double cos_r, Interp interp) co
 }
 
 Rgb BrdfTable::eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const {
-    AxisPos ti, phi;
-    locate_iso_cos(cos_i, cos_phi, interp, &ti, &phi);
-    return gather_iso(ti, theta_r, phi, interp);
+    IsoRead rd;
+    prepare_iso_cos(cos_i, theta_r, cos_phi, interp, &rd);
+    return read_iso(rd);
 }
 
-void BrdfTable::locate_iso_cos(double cos_i, double cos_phi, Interp interp, AxisPos* ti, AxisPos* phi) const {
+void BrdfTable::prepare_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp, IsoRead* rd) const {
     // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed.
-    *ti = locate_nodes(acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg * inv_step_[0], geom_.n[0], interp);
-    *phi = locate_nodes(acos_approx(cos_phi) * kRadToDeg * inv_step_[2], geom_.n[2], interp);
-}
-
-void BrdfTable::prefetch_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
+    const AxisPos ti = locate_nodes(acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg * inv_step_[0], geom_.n[0], interp);
+    const AxisPos phi = locate_nodes(acos_approx(cos_phi) * kRadToDeg * inv_step_[2], geom_.n[2], interp);
+    rows_iso(ti, theta_r, phi, interp, rd);
 #if defined(__GNUC__)
-    // The first float of each (theta_i, theta_r) row segment the lookup reads, and its last
-    // (the segment, 2 phi nodes x channels, may cross a cache line).
-    const uint64_t C = uint64_t(geom_.channels), last = uint64_t(pp.i1 - pp.i0 + 1) * C - 1;
-    const float* v = values_.data() + uint64_t(pp.i0) * C;
-    auto touch = [&](uint32_t i, uint32_t r) {
-        const float* p = v + iso_row(i, r);
-        __builtin_prefetch(p);
-        __builtin_prefetch(p + last);
-    };
-    touch(pi.i0, pr.i0);
-    if (interp == Interp::Linear) {
-        touch(pi.i1, pr.i0);
-        touch(pi.i0, pr.i1);
-        touch(pi.i1, pr.i1);
+    // Each row segment (two phi nodes x channels) may cross a cache line: its first and last float.
+    const uint32_t last = rd->nearest ? uint32_t(rd->channels - 1) : rd->dphi + uint32_t(rd->channels - 1);
+    for (int k = 0; k < (rd->nearest ? 1 : 4); ++k) {
+        __builtin_prefetch(rd->row[k]);
+        __builtin_prefetch(rd->row[k] + last);
     }
-#else
-    (void)pi, (void)pr, (void)pp, (void)interp;
 #endif
-}
-
-Rgb BrdfTable::eval_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp) const {
-    return gather_iso(ti, tr, phi, interp);
 }
 
 Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {

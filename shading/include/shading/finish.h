@@ -94,8 +94,8 @@ struct FinishView {
     struct Pending {
         Vec3 to_light;
         bool valid = false;
-        double cos_i = 0, cos_phi = 0;
-        BrdfTable::AxisPos theta_i, phi;
+        double cos_i = 0;
+        BrdfTable::IsoRead read;
     } pending;
     // Whether this view was made for `m` at (n, to_eye), bit for bit.
     bool is_for(const FinishModel& m, const Vec3& n_, const Vec3& to_eye_) const {
@@ -106,8 +106,18 @@ struct FinishView {
 void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* view);
 // The renderer's form, per light: `view` itself when it was made for this handle, normal and
 // eye and no handle has changed its model since (finish_model_generation: no registry
-// lookup), else remade; null for a handle without a model.
-const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& to_eye, FinishView* view);
+// lookup), else remade (finish_view_remake); null for a handle without a model.
+namespace detail {
+extern std::atomic<std::uint64_t> finish_generation;
+}
+inline std::uint64_t finish_model_generation() { return detail::finish_generation.load(std::memory_order_acquire); }
+const FinishView* finish_view_remake(int handle, const Vec3& n, const Vec3& to_eye, FinishView* view);
+inline const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    if (handle != 0 && v->handle == handle && v->generation == finish_model_generation() && v->n.x == n.x &&
+        v->n.y == n.y && v->n.z == n.z && v->to_eye.x == to_eye.x && v->to_eye.y == to_eye.y && v->to_eye.z == to_eye.z)
+        return v;
+    return finish_view_remake(handle, n, to_eye, v);
+}
 
 // A finish model around `brdf`, its directional albedo to be computed on first use
 // (AlbedoNodes).
@@ -155,9 +165,9 @@ std::size_t finish_model_live_count();
 // The largest `samples` (reflection_samples) among the live finish models, 0 if none: the
 // parser's estimate of what glossy rays will cost with area lights.
 int finish_model_max_reflection_samples();
-// A number that changes whenever some handle starts or stops naming a model (registration,
-// last release): a handle read at one generation names the same model while it is current.
-std::uint64_t finish_model_generation();
+// finish_model_generation() (above, inline): a number that changes whenever some handle
+// starts or stops naming a model (registration, last release); a handle read at one
+// generation names the same model while it is current.
 
 // The model of `handle` with its world-space tangent (the anisotropy `direction`) replaced,
 // for finishes that move with their object or texture (POV's transforms): a new registered

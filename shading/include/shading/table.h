@@ -147,11 +147,18 @@ public:
     };
     AxisPos locate_theta_r_cos(double cos_r, Interp interp) const;
     Rgb eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const;
-    // The same in three steps: the light's positions on the theta_i and phi axes, a prefetch
-    // of the memory the lookup will read (to overlap its latency with other work), the lookup.
-    void locate_iso_cos(double cos_i, double cos_phi, Interp interp, AxisPos* theta_i, AxisPos* phi) const;
-    void prefetch_iso(const AxisPos& theta_i, const AxisPos& theta_r, const AxisPos& phi, Interp interp) const;
-    Rgb eval_iso(const AxisPos& theta_i, const AxisPos& theta_r, const AxisPos& phi, Interp interp) const;
+    // The same in two steps: prepare_iso_cos locates the light, finds the four rows the
+    // read needs and prefetches them (so their memory latency can overlap other work, such
+    // as the renderer's shadow test); read_iso interpolates. Same bits as eval_iso_cos.
+    struct IsoRead {
+        const float* row[4] = {nullptr, nullptr, nullptr, nullptr};  // (i0,r0) (i1,r0) (i0,r1) (i1,r1) at phi i0
+        uint32_t dphi = 0;        // floats from a row's first phi node to its second
+        double t_i = 0, t_r = 0, t_phi = 0;
+        int channels = 3;
+        bool nearest = false;     // row[0] alone
+    };
+    void prepare_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp, IsoRead* read) const;
+    static Rgb read_iso(const IsoRead& read);
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
     float node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const;
@@ -178,7 +185,7 @@ private:
     // Isotropic lookup at positions on the three axes: trilinear by nested linear
     // interpolation (the same function as gather(), within rounding).
     Rgb gather_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp) const;
-    uint64_t iso_row(uint32_t i, uint32_t r) const;  // offset of (i, r, phi 0), channel 0
+    void rows_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp, IsoRead* read) const;
     void average_poles();
     void compute_albedo();
 
