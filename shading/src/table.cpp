@@ -264,6 +264,12 @@ BrdfTable::BrdfTable(const TableGeometry& geometry, std::vector<float> values, T
         s *= geom_.n[a];
     }
     for (int a = 0; a < geom_.axes(); ++a) inv_step_[a] = 1.0 / geom_.step_deg(a);
+    if (geom_.folded) {
+        // Pair (a, b), a <= b, is pair number a n - a (a - 1) / 2 + (b - a) (see offset()).
+        const uint64_t n = geom_.n[0], row = uint64_t(geom_.n[2]) * uint64_t(geom_.channels);
+        fold_row_.resize(n);
+        for (uint64_t a = 0; a < n; ++a) fold_row_[a] = (a * n - a * (a - 1) / 2 - a) * row;
+    }
     average_poles();
     compute_albedo();
 }
@@ -271,7 +277,8 @@ BrdfTable::BrdfTable(const TableGeometry& geometry, std::vector<float> values, T
 BrdfTable::~BrdfTable() = default;
 
 BrdfTable::BrdfTable(const BrdfTable& o)
-    : Brdf(o), geom_(o.geom_), values_(o.values_), info_(o.info_), interp_(o.interp_), albedo_(o.albedo_) {
+    : Brdf(o), geom_(o.geom_), values_(o.values_), info_(o.info_), interp_(o.interp_), albedo_(o.albedo_),
+      fold_row_(o.fold_row_) {
     std::copy(o.stride_, o.stride_ + 4, stride_);
     std::copy(o.inv_step_, o.inv_step_ + 4, inv_step_);
 }
@@ -404,14 +411,15 @@ inline void BrdfTable::rows_iso(const AxisPos& pi, const AxisPos& pr, const Axis
                                 IsoRead* rd) const {
     // Row offsets written out, so each row costs a few integer operations.
     const uint64_t C = uint64_t(geom_.channels), n_phi_values = uint64_t(geom_.n[2]) * C;
-    const uint64_t n = geom_.n[0], n1 = geom_.n[1];
+    const uint64_t n1 = geom_.n[1];
     const float* v = values_.data() + uint64_t(pp.i0) * C;
     const bool folded = geom_.folded;
+    const uint64_t* fold_row = fold_row_.data();
     auto row_of = [&](uint64_t i, uint64_t r) {
         if (!folded) return v + (i * n1 + r) * n_phi_values;
-        // Folded: pairs (a <= b) row-major; row a starts after n + (n-1) + ... + (n-a+1) pairs.
+        // Folded: pairs (a <= b) row-major; fold_row_[a] + b * n_phi_values is pair (a, b).
         const uint64_t a = i < r ? i : r, b = i < r ? r : i;
-        return v + (a * n - a * (a - 1) / 2 + (b - a)) * n_phi_values;
+        return v + fold_row[a] + b * n_phi_values;
     };
     rd->channels = int(C);
     rd->nearest = interp == Interp::Nearest;
@@ -424,27 +432,6 @@ inline void BrdfTable::rows_iso(const AxisPos& pi, const AxisPos& pr, const Axis
     rd->t_i = pi.t;
     rd->t_r = pr.t;
     rd->t_phi = pp.t;
-}
-
-Rgb BrdfTable::read_iso(const IsoRead& rd) {
-    const int C = rd.channels;
-    if (rd.nearest) {
-        const float* p = rd.row[0];
-        return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
-    }
-    // Trilinear as three rounds of linear interpolation a + t (b - a): phi inside each of the
-    // four (theta_i, theta_r) rows, then theta_i, then theta_r (about half the arithmetic of
-    // gather()'s eight weighted corners, and a shorter dependency chain on the renderer's
-    // per-light path). t = 0 returns a node exactly; t = 1 returns it to within the rounding
-    // of b - a (exact unless the two values differ by 2^29 or more). The two phi nodes of a
-    // row are neighbours in memory; locate keeps i0 <= n - 2, so every read is inside.
-    auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
-    auto channel = [&](int c) {
-        double r[4];
-        for (int k = 0; k < 4; ++k) r[k] = lerp(double(rd.row[k][c]), double(rd.row[k][rd.dphi + c]), rd.t_phi);
-        return lerp(lerp(r[0], r[1], rd.t_i), lerp(r[2], r[3], rd.t_i), rd.t_r);
-    };
-    return C == 1 ? Rgb(channel(0)) : Rgb(channel(0), channel(1), channel(2));
 }
 
 inline Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
@@ -601,7 +588,7 @@ Rgb BrdfTable::directional_albedo(double theta_i) const {
 
 size_t BrdfTable::bytes_used() const {
     return sizeof(*this) + values_.capacity() * sizeof(float) + albedo_.capacity() * sizeof(Rgb) +
-           info_.description.capacity();
+           fold_row_.capacity() * sizeof(uint64_t) + info_.description.capacity();
 }
 
 // ---------------------------------------------------------------- grids

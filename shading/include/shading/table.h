@@ -158,7 +158,26 @@ public:
         bool nearest = false;     // row[0] alone
     };
     void prepare_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp, IsoRead* read) const;
-    static Rgb read_iso(const IsoRead& read);
+    // Trilinear as three rounds of linear interpolation a + t (b - a): phi inside each of the
+    // four (theta_i, theta_r) rows, then theta_i, then theta_r (about half the arithmetic of
+    // gather()'s eight weighted corners, and a short dependency chain on the renderer's
+    // per-light path; inline, so the renderer's call site holds it). t = 0 returns a node
+    // exactly; t = 1 returns it to within the rounding of b - a (exact unless the two values
+    // differ by 2^29 or more). The two phi nodes of a row are neighbours in memory.
+    static Rgb read_iso(const IsoRead& rd) {
+        const int C = rd.channels;
+        if (rd.nearest) {
+            const float* p = rd.row[0];
+            return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
+        }
+        auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
+        auto channel = [&](int c) {
+            double r[4];
+            for (int k = 0; k < 4; ++k) r[k] = lerp(double(rd.row[k][c]), double(rd.row[k][rd.dphi + c]), rd.t_phi);
+            return lerp(lerp(r[0], r[1], rd.t_i), lerp(r[2], r[3], rd.t_i), rd.t_r);
+        };
+        return C == 1 ? Rgb(channel(0)) : Rgb(channel(0), channel(1), channel(2));
+    }
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
     float node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const;
@@ -196,6 +215,7 @@ private:
     std::vector<Rgb> albedo_;
     uint64_t stride_[4] = {0, 0, 0, 0};  // unfolded strides in floats
     double inv_step_[4] = {0, 0, 0, 0};  // nodes per degree
+    std::vector<uint64_t> fold_row_;  // folded tables: offset of pair (a, a) minus a rows, per a
     mutable std::once_flag sampler_once_;
     mutable std::unique_ptr<const TableSampler> sampler_;
     mutable std::atomic<const TableSampler*> sampler_ready_{nullptr};
