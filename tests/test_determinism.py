@@ -10,6 +10,10 @@ different order from run to run); all three images must be equal to the bit.
 (``tests/test_analytic_finishes.py`` checks the same for a sphere in a white furnace; the
 scenes here add tables, shadows, POV's own reflection and other objects hit by the glossy
 rays.)
+
+One exception is upstream's and stays: POV-Ray's per-thread shadow cache makes a rare pixel
+depend on the order pixels are traced (a torus beside a sphere under an area light, the last
+test); the fork renders it exactly as stock does in every order.
 """
 
 from __future__ import annotations
@@ -82,3 +86,39 @@ def test_demo_scene(fork):
         pytest.skip("the demo's tables are not built (make brdf-data)")
     text = (repo_root() / "scenes" / "demo.pov").read_text()
     assert_identical(*three_renders(text, fork, width=96, height=54))
+
+
+#: Stock POV-Ray only (no fork keywords): the demo's old layout with a torus beside a sphere
+#: under an area light. Issue 16's "1 of 5184 pixels differs between +WT1 and +WT2" is this.
+SHADOW_CACHE_SCENE = """#version 3.7;
+global_settings { assumed_gamma 1.0 max_trace_level 6 }
+camera { location <0, 4.6, -10.5> look_at <0, 0.35, 0> angle 50 right x * image_width / image_height }
+light_source { <-5, 8, -6> rgb 1.0 area_light x * 1.5, z * 1.5, 4, 4 adaptive 1 circular orient area_illumination on }
+light_source { <6, 4, -3> rgb <0.25, 0.28, 0.32> }
+plane { y, 0 pigment { checker rgb 0.6 rgb 0.45 scale 0.8 } finish { diffuse 0.8 } }
+sphere { <1.75, 0.7, 1> 0.7 pigment { rgb 0.7 } finish { diffuse 0.7 phong 0.5 } }
+torus { 0.5, 0.2 rotate x * 70 translate <3.5, 0.72, 1> pigment { rgb <0.8, 0.4, 0.3> } finish { diffuse 0.7 phong 0.5 } }
+"""
+
+
+def test_pixel_order_dependence_is_upstream_and_the_fork_matches_it(fork, stock):
+    # POV-Ray 3.7 keeps, per render thread and light, the object that last blocked a shadow
+    # ray and tests it first. That cached test accepts any intersection the object's own
+    # routine reports (a torus: depth > 1e-4), while the full test accepts only depths in
+    # (SHADOW_TOLERANCE, distance - SHADOW_TOLERANCE), SHADOW_TOLERANCE = 1e-3 (trace.cpp,
+    # TraceShadowRay). Where a shadow ray grazes its own torus between the two, the result
+    # depends on whether the torus or the sphere beside it is cached, i.e. on which pixel the
+    # thread shaded before: on the block size and the thread count, in stock POV-Ray alike.
+    # (Checked: with the cached test given the same depth window the difference vanishes; a
+    # fork that did so would no longer match stock, so the fork keeps upstream's behaviour.)
+    def pair(binary):
+        a = runner.render(SHADOW_CACHE_SCENE, binary, width=96, height=54, threads=1).image
+        b = runner.render(SHADOW_CACHE_SCENE, binary, width=96, height=54, threads=2, extra_args=("+BS8",)).image
+        return a, b
+    sa, sb = pair(stock)
+    fa, fb = pair(fork)
+    differ = int((sa != sb).any(-1).sum())
+    print(f"stock: {differ} of {sa.shape[0] * sa.shape[1]} pixels differ between +WT1 and +WT2 +BS8")
+    assert sa.max() > 0.05
+    np.testing.assert_array_equal(fa, sa)  # the fork is stock in either pixel order
+    np.testing.assert_array_equal(fb, sb)

@@ -7,5 +7,6 @@ published formulas or from another method (Monte Carlo).
 * :mod:`~harness.reference.models`        every analytic model of the library in numpy;
 * :mod:`~harness.reference.expect`        closed-form expected pixels per scene;
 * :mod:`~harness.reference.dipole_ref`    the dipole's formulas and exact transport results;
-* :mod:`~harness.reference.mc_subsurface` Monte Carlo photon migration.
+* :mod:`~harness.reference.mc_subsurface` Monte Carlo photon migration;
+* :mod:`~harness.reference.table_albedo`  directional albedo of a tabulated BRDF from its nodes.
 """

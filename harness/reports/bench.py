@@ -3,7 +3,17 @@
 Each row renders a scene with a baseline (usually stock POV-Ray) and a candidate (the
 fork, often with one of our finishes) and reports the ratio of POV's own *trace* times
 (start-up and parsing excluded). Renders alternate baseline/candidate and each ratio is the
-median over ``--repeat`` pairs, so machine noise hits both sides alike.
+median over ``--repeat`` pairs, so machine noise hits both sides alike. Rows of one *group*
+share their baseline and are measured in interleaved rounds (baseline, then every candidate,
+in a rotating order): each round's ratios divide by that round's baseline. Two ratios are
+printed: of POV's trace time (wall clock, the goals' measure) and of its trace CPU-seconds
+(summed over render threads), which other work on a shared machine inflates far less; on a
+quiet machine the two agree for one thread.
+
+The speed goals of issue 16 are the ``grid`` rows: 25 spheres (5 x 5, radius 1, spacing 2.2)
+over a plane, one parallel and one point light, orthographic camera, 1536 x 1536, no AA,
+against stock POV-Ray's ``diffuse 0.6 phong 0.5 phong_size 40``; the ``grid 2 threads`` rows
+render the same scenes with ``+WT2``.
 
     python -m harness.reports.bench                 # every row
     python -m harness.reports.bench -k unmodified   # rows whose name contains the text
@@ -62,6 +72,9 @@ class Row:
     width: int = 1280
     height: int = 960
     note: str = ""
+    threads: int = 1
+    #: rows with the same group share the baseline and are measured in interleaved rounds
+    group: str = ""
 
 
 ROWS: list[Row] = []
@@ -113,12 +126,59 @@ row("brdf_table halfdiff trilinear / brdf_table 1 deg trilinear", _table_side(),
     note="same binary: the layouts' lookups; goal ~1.0")
 assert all(STOCK_FINISH not in r.candidate.scene for r in ROWS[1:])  # every candidate replaced it
 
+#: Issue 16's speed scene: 5 x 5 spheres of radius 1, spacing 2.2, over a plane, one parallel
+#: and one point light, orthographic camera; rendered at 1536 x 1536 without anti-aliasing.
+GRID_SCENE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 14, -14> look_at <0, 0.5, 0> right x*15 up y*15 }}
+light_source {{ <-1, 1.5, -0.6> * 1000 rgb <0.9, 0.9, 0.85> parallel point_at 0 }}
+light_source {{ <6, 9, -8> rgb <0.5, 0.55, 0.6> }}
+plane {{ y, 0 pigment {{ rgb 0.6 }} finish {{ diffuse 0.7 }} }}
+#declare I = 0;
+#while (I < 25)
+  sphere {{ <mod(I, 5) * 2.2 - 4.4, 1, div(I, 5) * 2.2 - 4.4>, 1
+    pigment {{ rgb <0.8, 0.5, 0.3> }}
+    finish {{ {finish} }} }}
+  #declare I = I + 1;
+#end
+"""
+GRID_PHONG = "diffuse 0.6 phong 0.5 phong_size 40"
+#: A gold-like conductor: Beckmann lobe, Smith G, conductor Fresnel (n + ik per channel).
+GRID_MODEL = "microfacet d=beckmann m=0.2 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8"
+GRID_SIZE = 1536
+
+
+def _grid(finish: str, binary: str = "fork", lookup: str = "") -> Side:
+    if finish == "table":
+        return Side(binary, GRID_SCENE.format(finish=f'brdf_table {{ "t.brdf"{lookup} }}'),
+                    files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)})
+    if finish == "model":
+        return Side(binary, GRID_SCENE.format(finish=f'brdf_model {{ "{GRID_MODEL}" }}'))
+    return Side(binary, GRID_SCENE.format(finish=GRID_PHONG))
+
+
+for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
+    _kw = dict(width=GRID_SIZE, height=GRID_SIZE, threads=_threads, group=_group)
+    row(f"{_group}: fork phong / stock phong", _grid("phong", "stock"), _grid("phong"),
+        note="goal <= 1.00 (+- noise)", **_kw)
+    row(f"{_group}: brdf_table 1 deg trilinear / stock phong", _grid("phong", "stock"), _grid("table"),
+        note="goal <= 1.05", **_kw)
+    if _threads == 1:
+        row(f"{_group}: brdf_table 1 deg nearest / stock phong", _grid("phong", "stock"),
+            _grid("table", lookup=" interpolate 0"), **_kw)
+    row(f"{_group}: brdf_model Beckmann conductor / stock phong", _grid("phong", "stock"), _grid("model"),
+        note="goal <= 1.25", **_kw)
+
 
 @dataclass
 class Result:
     row: Row
     baseline_s: list[float]
     candidate_s: list[float]
+    #: POV's trace CPU-seconds (all render threads) of the same renders: on a shared machine
+    #: other work inflates them far less than the wall-clock trace time
+    baseline_cpu: list[float] = field(default_factory=list)
+    candidate_cpu: list[float] = field(default_factory=list)
 
     @property
     def ratios(self) -> list[float]:
@@ -128,36 +188,100 @@ class Result:
     def ratio(self) -> float:
         return statistics.median(self.ratios)
 
+    @property
+    def cpu_ratio(self) -> Optional[float]:
+        rs = [c / b for b, c in zip(self.baseline_cpu, self.candidate_cpu) if b > 0]
+        return statistics.median(rs) if rs else None
 
-def _trace_time(side: Side, r: Row) -> float:
-    res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=1,
+
+class _Times(list):
+    """Trace wall seconds, with the CPU-seconds of the same renders alongside."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cpu: list[float] = []
+
+
+def _trace(side: Side, r: Row) -> tuple[float, float]:
+    """(trace wall seconds, trace CPU-seconds) of one render."""
+    res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=r.threads,
                         files=side.resolved_files())
     if res.trace_seconds is None:
         raise RuntimeError(f"{r.name}: POV printed no trace time")
-    return res.trace_seconds
+    return res.trace_seconds, float(res.stats.get("trace_cpu_time", res.trace_seconds))
+
+
+def _trace_time(side: Side, r: Row, into: Optional[_Times] = None) -> float:
+    wall, cpu = _trace(side, r)
+    if into is not None:
+        into.append(wall)
+        into.cpu.append(cpu)
+    return wall
 
 
 def measure(r: Row, repeat: int = 5, log: Optional[Callable[[str], None]] = None) -> Result:
     """Alternate baseline and candidate renders ``repeat`` times (after one warm-up pair)."""
     _trace_time(r.baseline, r), _trace_time(r.candidate, r)  # warm file caches
-    base, cand = [], []
+    base, cand = _Times(), _Times()
     for i in range(repeat):
-        base.append(_trace_time(r.baseline, r))
-        cand.append(_trace_time(r.candidate, r))
+        _trace_time(r.baseline, r, base)
+        _trace_time(r.candidate, r, cand)
         if log:
             log(f"  {r.name} [{i + 1}/{repeat}] {base[-1]:.3f} s vs {cand[-1]:.3f} s")
-    return Result(r, base, cand)
+    return Result(r, list(base), list(cand), base.cpu, cand.cpu)
+
+
+def measure_group(rows: Sequence[Row], repeat: int = 5,
+                  log: Optional[Callable[[str], None]] = None) -> list[Result]:
+    """Rows sharing one baseline, in ``repeat`` interleaved rounds after a warm-up round.
+
+    Each round renders the baseline, then every candidate (the order rotates from round to
+    round); a row's ratios divide its candidate's time by the same round's baseline.
+    """
+    first = rows[0]
+    assert all(r.baseline == first.baseline and (r.width, r.height, r.threads) ==
+               (first.width, first.height, first.threads) for r in rows), "a group shares its baseline"
+    _trace_time(first.baseline, first)
+    for r in rows:
+        _trace_time(r.candidate, r)  # warm file caches and table caches
+    base = _Times()
+    cand = [_Times() for _ in rows]
+    for i in range(repeat):
+        _trace_time(first.baseline, first, base)
+        for k in range(len(rows)):
+            j = (k + i) % len(rows)
+            _trace_time(rows[j].candidate, rows[j], cand[j])
+        if log:
+            log(f"  {first.group} [{i + 1}/{repeat}] baseline {base[-1]:.3f} s, " +
+                ", ".join(f"{c[-1]:.3f}" for c in cand))
+    return [Result(r, list(base), list(c), list(base.cpu), list(c.cpu)) for r, c in zip(rows, cand)]
+
+
+def measure_all(rows: Sequence[Row], repeat: int = 5,
+                log: Optional[Callable[[str], None]] = None) -> list[Result]:
+    """Every row, groups together (in the order of their first row), results in row order."""
+    done: dict[str, Result] = {}
+    for r in rows:
+        if r.name in done:
+            continue
+        members = [x for x in rows if r.group and x.group == r.group] or [r]
+        results = measure_group(members, repeat, log) if len(members) > 1 else [measure(r, repeat, log)]
+        done.update({x.row.name: x for x in results})
+    return [done[r.name] for r in rows]
 
 
 def format_table(results: Sequence[Result]) -> str:
+    """Medians of the per-round ratios of trace wall time (``ratio``, with its spread) and of
+    trace CPU-seconds (``cpu ratio``)."""
     w = max([len(x.row.name) for x in results] + [4])
-    lines = [f"{'row':<{w}}  {'baseline s':>10}  {'candidate s':>11}  {'ratio':>6}  {'spread':>13}  note",
-             "-" * (w + 60)]
+    lines = [f"{'row':<{w}}  {'baseline s':>10}  {'candidate s':>11}  {'ratio':>6}  {'spread':>13}  "
+             f"{'cpu ratio':>9}  note", "-" * (w + 71)]
     for x in results:
         rs = x.ratios
+        cpu = f"{x.cpu_ratio:9.3f}" if x.cpu_ratio is not None else f"{'-':>9}"
         lines.append(f"{x.row.name:<{w}}  {statistics.median(x.baseline_s):10.3f}  "
                      f"{statistics.median(x.candidate_s):11.3f}  {x.ratio:6.3f}  "
-                     f"{min(rs):6.3f}..{max(rs):6.3f}  {x.row.note}")
+                     f"{min(rs):6.3f}..{max(rs):6.3f}  {cpu}  {x.row.note}")
     return "\n".join(lines)
 
 
@@ -176,7 +300,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f"no benchmark row matches {args.pattern!r}", file=sys.stderr)
         return 2
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    results = [measure(r, max(1, args.repeat), log) for r in rows]
+    results = measure_all(rows, max(1, args.repeat), log)
     print(format_table(results))
     return 0
 

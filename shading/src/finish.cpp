@@ -3,6 +3,7 @@
 #include "shading/model_spec.h"
 #include "shading/models.h"
 #include "shading/subsurface.h"
+#include "shading/table_sampler.h"
 
 #include <algorithm>
 #include <array>
@@ -51,6 +52,9 @@ Registry& registry() {
 
 }  // namespace
 
+// Changes whenever a handle starts or stops naming a model (finish_model_generation).
+std::atomic<std::uint64_t> detail::finish_generation{1};
+
 int finish_model_register(std::shared_ptr<const FinishModel> model) {
     if (!model || !model->brdf) throw std::invalid_argument("finish model without a BRDF");
     Registry& r = registry();
@@ -74,6 +78,7 @@ int finish_model_register(std::shared_ptr<const FinishModel> model) {
     s->refs = 1;
     s->model.store(s->owner.get(), std::memory_order_release);
     ++r.live;
+    detail::finish_generation.fetch_add(1, std::memory_order_acq_rel);
     return handle;
 }
 
@@ -99,6 +104,7 @@ void finish_model_release(int handle) {
             last = std::move(s->owner);
             r.free_handles.push_back(handle);
             --r.live;
+            detail::finish_generation.fetch_add(1, std::memory_order_acq_rel);
         }
     }
 }
@@ -108,37 +114,128 @@ const FinishModel* finish_model_get(int handle) {
     return s ? s->model.load(std::memory_order_acquire) : nullptr;
 }
 
+int finish_model_with_tangent(int handle, const Vec3& tangent) {
+    const FinishModel* m = finish_model_get(handle);
+    if (!m || !m->brdf->anisotropic()) return handle;
+    auto moved = std::make_shared<FinishModel>(*m);
+    moved->tangent = tangent;
+    moved->serial = FinishModel::next_finish_serial();  // views of the original do not fit it
+    const int fresh = finish_model_register(std::move(moved));
+    finish_model_release(handle);
+    return fresh;
+}
+
+int finish_model_max_reflection_samples() {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    int most = 0;
+    for (int h = 1; h < r.next; ++h) {
+        const Slot* s = r.slot(h);
+        if (s && s->refs > 0 && s->owner) most = std::max(most, s->owner->reflection_samples);
+    }
+    return most;
+}
+
 std::size_t finish_model_live_count() {
     Registry& r = registry();
     std::lock_guard<std::mutex> lock(r.mutex);
     return r.live;
 }
 
-Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
-                        const Rgb& pigment) {
+std::uint64_t FinishModel::next_finish_serial() {
+    static std::atomic<std::uint64_t> next{1};
+    return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+const FinishView* finish_view_remake(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    const std::uint64_t generation = finish_model_generation();
+    const FinishModel* model = finish_model_get(handle);
+    if (!model) return nullptr;
+    finish_view(*model, n, to_eye, v);
+    v->handle = handle;
+    v->generation = generation;
+    return v;
+}
+
+void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    v->handle = 0;  // made from a model, not a handle (finish_view_of sets these)
+    v->generation = 0;
+    v->model = &model;
+    v->serial = model.serial;
+    v->pending.valid = false;  // a prefetched light belongs to the view it was made in
+    v->n = n;
+    v->to_eye = to_eye;
+    v->cos_o = dot(n, to_eye);
+    v->sin2_o = 1.0 - v->cos_o * v->cos_o;
+    if (model.iso_table) {
+        if (v->cos_o > 0) v->theta_r = model.iso_table->locate_theta_r_cos(v->cos_o, model.iso_interp);
+        return;
+    }
+    if (model.halfdiff_table) return;  // looked up from world vectors, no frame
+    v->frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent) : Frame::from_normal(n);
+    v->wo = v->frame.to_local(to_eye);
+    model.brdf->prepare_view(v->wo, &v->brdf);
+}
+
+namespace {
+// Isotropic table: cosines straight from world vectors, no frame. cos phi (phi = phi_r -
+// phi_i) is l.v minus the product of the normal components, over sin(theta_i) sin(theta_r);
+// at a pole (product 0) phi is undefined and the table's pole rows do not depend on it.
+// False when the light or the viewer is below the surface.
+bool table_cosines(const FinishView& v, const Vec3& to_light, double* ci, double* cp) {
+    *ci = dot(v.n, to_light);
+    if (!(*ci > 0) || !(v.cos_o > 0)) return false;
+    const double ss = (1.0 - *ci * *ci) * v.sin2_o;
+    *cp = ss > 0 ? (dot(to_light, v.to_eye) - *ci * v.cos_o) / std::sqrt(ss) : 1.0;
+    return true;
+}
+bool same(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
+}  // namespace
+
+void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
+    const FinishModel& model = *v->model;
+    v->pending.valid = false;
+    if (!model.iso_table) return;
+    FinishView::Pending& p = v->pending;
+    double cos_phi;
+    if (!table_cosines(*v, to_light, &p.cos_i, &cos_phi)) return;
+    model.iso_table->prepare_iso_cos(p.cos_i, v->theta_r, cos_phi, model.iso_interp, &p.read);
+    p.to_light = to_light;
+    p.valid = true;
+}
+
+Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
+    const FinishModel& model = *v.model;
     if (model.halfdiff_table) {
-        const double ci = dot(n, to_light);
-        if (!(ci > 0) || !(dot(n, to_eye) > 0)) return Rgb(0.0);
-        Rgb w = model.halfdiff_table->eval_halfdiff_dirs(n, to_light, to_eye, model.iso_interp) * (kPi * ci) * model.scale;
+        const double ci = dot(v.n, to_light);
+        if (!(ci > 0) || !(v.cos_o > 0)) return Rgb(0.0);
+        Rgb w = model.halfdiff_table->eval_halfdiff_dirs(v.n, to_light, v.to_eye, model.iso_interp) * (kPi * ci) *
+                model.scale;
         return model.tint ? w * pigment : w;
     }
     if (model.iso_table) {
-        // Isotropic table: theta_i, theta_r and phi = phi_r - phi_i straight from world vectors.
-        // |sin phi| and cos phi scaled by sin(theta_i) sin(theta_r): the normal component of
-        // l x v, and l.v minus the product of the normal components.
-        const double ci = dot(n, to_light), co = dot(n, to_eye);
-        if (!(ci > 0) || !(co > 0)) return Rgb(0.0);
-        const double sp = std::fabs(dot(n, cross(to_light, to_eye)));
-        const double cp = dot(to_light, to_eye) - ci * co;
-        Rgb w = model.iso_table->eval_iso(std::acos(std::min(ci, 1.0)), std::acos(std::min(co, 1.0)),
-                                          std::atan2(sp, cp), model.iso_interp) *
-                (kPi * ci) * model.scale;
+        Rgb f;
+        double ci;
+        if (v.pending.valid && same(v.pending.to_light, to_light)) {
+            ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
+            f = BrdfTable::read_iso(v.pending.read);
+        } else {
+            double cp;
+            if (!table_cosines(v, to_light, &ci, &cp)) return Rgb(0.0);
+            f = model.iso_table->eval_iso_cos(ci, v.theta_r, cp, model.iso_interp);
+        }
+        Rgb w = f * (kPi * ci) * model.scale;
         return model.tint ? w * pigment : w;
     }
-    const Frame frame = model.brdf->anisotropic() ? Frame::from_normal_tangent(n, model.tangent)
-                                                  : Frame::from_normal(n);
-    Rgb w = pov_weight(*model.brdf, frame.to_local(to_eye), frame.to_local(to_light)) * model.scale;
+    Rgb w = pov_weight(*model.brdf, v.wo, v.frame.to_local(to_light), v.brdf) * model.scale;
     return model.tint ? w * pigment : w;
+}
+
+Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
+                        const Rgb& pigment) {
+    FinishView v;
+    finish_view(model, n, to_eye, &v);
+    return finish_light_weight(v, to_light, pigment);
 }
 
 Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment) {
@@ -227,6 +324,10 @@ public:
     TableView(std::shared_ptr<const BrdfTable> t, Interp i) : table_(std::move(t)), interp_(i) {}
     Rgb f(const Vec3& wo, const Vec3& wi) const override { return table_->f(wo, wi, interp_); }
     bool anisotropic() const override { return table_->anisotropic(); }
+    // The table's own sampler (built once per table, whatever the interpolation: it covers
+    // every cell where either lookup is positive).
+    Vec3 sample(const Vec3& wo, double u1, double u2) const override { return table_->sample(wo, u1, u2); }
+    double pdf(const Vec3& wo, const Vec3& wi) const override { return table_->pdf(wo, wi); }
     std::string describe() const override { return table_->describe() + " interp=" + to_string(interp_); }
     const BrdfTable& table() const { return *table_; }
     Interp interpolation() const { return interp_; }
@@ -421,8 +522,15 @@ std::shared_ptr<const BrdfTable> shared_table(const std::string& key,
 
 SharedTableStats shared_table_stats() {
     TableCache& c = table_cache();
-    std::lock_guard<std::mutex> lock(c.mutex);
-    return c.stats;
+    SharedTableStats s;
+    {
+        std::lock_guard<std::mutex> lock(c.mutex);
+        s = c.stats;
+    }
+    const TableSampler::Memory m = TableSampler::memory();
+    s.sampler_bytes = m.live;
+    s.peak_sampler_bytes = m.peak;
+    return s;
 }
 
 }  // namespace shading

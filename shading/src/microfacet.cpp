@@ -262,12 +262,23 @@ double Microfacet::geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const
     return g_smith(d.smith_lambda(wo), d.smith_lambda(wi));
 }
 
-Rgb Microfacet::f(const Vec3& wo, const Vec3& wi) const {
+Rgb Microfacet::f(const Vec3& wo, const Vec3& wi) const { return f_lambda(wo, wi, nullptr); }
+
+void Microfacet::prepare_view(const Vec3& wo, BrdfViewCache* cache) const {
+    cache->valid = g == GKind::Smith && wo.z > 0;
+    if (cache->valid) cache->v[0] = d.smith_lambda(wo);
+}
+
+Rgb Microfacet::f_view(const Vec3& wo, const Vec3& wi, const BrdfViewCache& cache) const {
+    return f_lambda(wo, wi, cache.valid ? &cache.v[0] : nullptr);
+}
+
+Rgb Microfacet::f_lambda(const Vec3& wo, const Vec3& wi, const double* lambda_o) const {
     if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);  // below the surface: no reflection
     Rgb diffuse = kd * kInvPi;
     Vec3 h = half_vector(wo, wi);  // wo.z + wi.z > 0, so wo + wi != 0
     double vh = dot(wo, h);        // = dot(wi, h) > 0
-    double G = geometry(wo, wi, h);
+    double G = lambda_o && g == GKind::Smith ? g_smith(*lambda_o, d.smith_lambda(wi)) : geometry(wo, wi, h);
     // Both cosines divide. f is finite for every pair with positive cosines; away from the
     // mirror pair G also vanishes with the smaller cosine. At the grazing mirror pair V-cavity
     // G -> 1 (V.H -> N.V there), so f ~ D / (4 cos^2) and pi f cos_i ~ 1/cos: the V-cavity

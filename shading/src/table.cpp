@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "format.h"
+#include "shading/table_sampler.h"
 
 namespace shading {
 
@@ -299,8 +300,48 @@ BrdfTable::BrdfTable(const TableGeometry& geometry, std::vector<float> values, T
         init_halfdiff();  // virtual poles and the albedo over the half vector (table_halfdiff.cpp)
         return;
     }
+    if (geom_.folded) {
+        // Pair (a, b), a <= b, is pair number a n - a (a - 1) / 2 + (b - a) (see offset()).
+        const uint64_t n = geom_.n[0], row = uint64_t(geom_.n[2]) * uint64_t(geom_.channels);
+        fold_row_.resize(n);
+        for (uint64_t a = 0; a < n; ++a) fold_row_[a] = (a * n - a * (a - 1) / 2 - a) * row;
+    }
     average_poles();
     compute_albedo();
+}
+
+BrdfTable::~BrdfTable() = default;
+
+BrdfTable::BrdfTable(const BrdfTable& o)
+    : Brdf(o), geom_(o.geom_), values_(o.values_), info_(o.info_), interp_(o.interp_), albedo_(o.albedo_),
+      fold_row_(o.fold_row_) {
+    std::copy(o.stride_, o.stride_ + 4, stride_);
+    std::copy(o.inv_step_, o.inv_step_ + 4, inv_step_);
+}
+
+const TableSampler* BrdfTable::sampler() const {
+    if (geom_.layout == TableLayout::Anisotropic) return nullptr;  // the generic mixture
+    if (const TableSampler* s = sampler_ready_.load(std::memory_order_acquire)) return s;
+    std::call_once(sampler_once_, [this] {
+        sampler_ = std::make_unique<const TableSampler>(*this);
+        sampler_ready_.store(sampler_.get(), std::memory_order_release);
+    });
+    return sampler_.get();
+}
+
+size_t BrdfTable::sampler_bytes() const {
+    const TableSampler* s = sampler_ready_.load(std::memory_order_acquire);
+    return s ? s->bytes_used() : 0;
+}
+
+Vec3 BrdfTable::sample(const Vec3& wo, double u1, double u2) const {
+    const TableSampler* s = sampler();
+    return s ? s->sample(wo, u1, u2) : Brdf::sample(wo, u1, u2);
+}
+
+double BrdfTable::pdf(const Vec3& wo, const Vec3& wi) const {
+    const TableSampler* s = sampler();
+    return s ? s->pdf(wo, wi) : Brdf::pdf(wo, wi);
 }
 
 uint64_t BrdfTable::offset(const uint32_t idx[4]) const {
@@ -381,13 +422,104 @@ Rgb BrdfTable::gather(const AxisPos pos[4], Interp interp) const {
     return C == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
 }
 
+namespace {
+// A position x (in nodes) on an axis of n nodes that is not periodic: clamped to [0, n - 1];
+// the nearest node (ties up: x >= 0, so truncating x + 0.5 is floor), or the two nodes around
+// it and the weight of the upper one (x == n - 1: (n - 2, n - 1) with weight 1).
+inline BrdfTable::AxisPos locate_nodes(double x, uint32_t n, Interp interp) {
+    const double last = double(n - 1);
+    if (!(x > 0)) x = 0;  // also NaN
+    if (x > last) x = last;
+    if (interp == Interp::Nearest) {
+        const uint32_t i = uint32_t(x + 0.5);
+        return {i, i, 0.0};
+    }
+    const uint32_t i0 = std::min(uint32_t(x), n - 2);
+    return {i0, i0 + 1, x - double(i0)};
+}
+}  // namespace
+
+BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp interp) const {
+    return locate_nodes(deg * inv_step_[axis], geom_.n[axis], interp);
+}
+
+inline void BrdfTable::rows_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp,
+                                IsoRead* rd) const {
+    // Row offsets written out, so each row costs a few integer operations.
+    const uint64_t C = uint64_t(geom_.channels), n_phi_values = uint64_t(geom_.n[2]) * C;
+    const uint64_t n1 = geom_.n[1];
+    const float* v = values_.data() + uint64_t(pp.i0) * C;
+    const bool folded = geom_.folded;
+    const uint64_t* fold_row = fold_row_.data();
+    auto row_of = [&](uint64_t i, uint64_t r) {
+        if (!folded) return v + (i * n1 + r) * n_phi_values;
+        // Folded: pairs (a <= b) row-major; fold_row_[a] + b * n_phi_values is pair (a, b).
+        const uint64_t a = i < r ? i : r, b = i < r ? r : i;
+        return v + fold_row[a] + b * n_phi_values;
+    };
+    rd->channels = int(C);
+    rd->nearest = interp == Interp::Nearest;
+    rd->row[0] = row_of(pi.i0, pr.i0);
+    if (rd->nearest) return;
+    rd->row[1] = row_of(pi.i1, pr.i0);
+    rd->row[2] = row_of(pi.i0, pr.i1);
+    rd->row[3] = row_of(pi.i1, pr.i1);
+    rd->dphi = uint32_t((pp.i1 - pp.i0) * C);
+    rd->t_i = pi.t;
+    rd->t_r = pr.t;
+    rd->t_phi = pp.t;
+}
+
+inline Rgb BrdfTable::gather_iso(const AxisPos& pi, const AxisPos& pr, const AxisPos& pp, Interp interp) const {
+    IsoRead rd;
+    rows_iso(pi, pr, pp, interp, &rd);
+    return read_iso(rd);
+}
+
 Rgb BrdfTable::eval_iso(double theta_i, double theta_r, double phi, Interp interp) const {
     if (geom_.layout == TableLayout::Anisotropic) return eval_aniso(theta_i, 0.0, theta_r, phi, interp);
     if (geom_.layout == TableLayout::HalfDiff)
         return f(spherical_direction(theta_r, phi), spherical_direction(theta_i, 0.0), interp);
-    AxisPos pos[4] = {locate(0, theta_i * kRadToDeg, interp), locate(1, theta_r * kRadToDeg, interp),
-                      locate(2, phi * kRadToDeg, interp), {0, 0, 0.0}};
-    return gather(pos, interp);
+    double d = phi * kRadToDeg;
+    // f is even in phi and 360-periodic: fold onto [0, 180] (the common case needs nothing).
+    if (!(d >= 0.0 && d <= 180.0)) {
+        d = std::fmod(std::fabs(d), 360.0);
+        if (d > 180.0) d = 360.0 - d;
+    }
+    return gather_iso(locate_in_range(0, theta_i * kRadToDeg, interp), locate_in_range(1, theta_r * kRadToDeg, interp),
+                      locate_in_range(2, d, interp), interp);
+}
+
+Rgb BrdfTable::eval_iso_cos(double cos_i, double cos_r, double cos_phi, Interp interp) const {
+    if (geom_.layout != TableLayout::Isotropic)  // anisotropic (phi_i = 0) and half/difference tables
+        return eval_iso(acos_approx(std::clamp(cos_i, 0.0, 1.0)), acos_approx(std::clamp(cos_r, 0.0, 1.0)),
+                        acos_approx(std::clamp(cos_phi, -1.0, 1.0)), interp);
+    return eval_iso_cos(cos_i, locate_theta_r_cos(cos_r, interp), cos_phi, interp);
+}
+
+BrdfTable::AxisPos BrdfTable::locate_theta_r_cos(double cos_r, Interp interp) const {
+    return locate_in_range(1, acos_approx(std::clamp(cos_r, 0.0, 1.0)) * kRadToDeg, interp);
+}
+
+Rgb BrdfTable::eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const {
+    IsoRead rd;
+    prepare_iso_cos(cos_i, theta_r, cos_phi, interp, &rd);
+    return read_iso(rd);
+}
+
+void BrdfTable::prepare_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp, IsoRead* rd) const {
+    // acos_approx keeps theta in [0, 90] and phi in [0, 180] deg: no folding needed.
+    const AxisPos ti = locate_nodes(acos_approx(std::clamp(cos_i, 0.0, 1.0)) * kRadToDeg * inv_step_[0], geom_.n[0], interp);
+    const AxisPos phi = locate_nodes(acos_approx(cos_phi) * kRadToDeg * inv_step_[2], geom_.n[2], interp);
+    rows_iso(ti, theta_r, phi, interp, rd);
+#if defined(__GNUC__)
+    // Each row segment (two phi nodes x channels) may cross a cache line: its first and last float.
+    const uint32_t last = rd->nearest ? uint32_t(rd->channels - 1) : rd->dphi + uint32_t(rd->channels - 1);
+    for (int k = 0; k < (rd->nearest ? 1 : 4); ++k) {
+        __builtin_prefetch(rd->row[k]);
+        __builtin_prefetch(rd->row[k] + last);
+    }
+#endif
 }
 
 Rgb BrdfTable::eval_aniso(double theta_i, double phi_i, double theta_r, double phi_r, Interp interp) const {
@@ -507,7 +639,8 @@ double BrdfTable::albedo_node_deg(size_t k) const {
 
 size_t BrdfTable::bytes_used() const {
     return sizeof(*this) + values_.capacity() * sizeof(float) + albedo_.capacity() * sizeof(Rgb) +
-           (pole_h_.capacity() + pole_d_.capacity()) * sizeof(float) + info_.description.capacity();
+           (pole_h_.capacity() + pole_d_.capacity()) * sizeof(float) + fold_row_.capacity() * sizeof(uint64_t) +
+           info_.description.capacity();
 }
 
 // ---------------------------------------------------------------- grids

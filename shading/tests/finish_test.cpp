@@ -334,3 +334,154 @@ TEST(GlossyReflection, IndirectWeightKeepsOnlyTheBase) {
     auto t = make_finish_model(table_brdf(std::shared_ptr<const BrdfTable>(lambert_table(0.5)), Interp::Linear));
     EXPECT_EQ(t->base.max_component(), 0.0);
 }
+
+TEST(FinishRegistry, TangentReplacedOnlyForAnisotropicModels) {
+    // POV's transforms move an anisotropic finish's direction with its object: a new model
+    // with the new tangent, sharing the BRDF and albedo; the old handle's reference moves.
+    auto aniso = make_finish_model(make_brdf("ward ax=0.05 ay=0.3 rho_s=0.3"));
+    aniso->tangent = Vec3(1, 0, 0);
+    const size_t live = finish_model_live_count();
+    const int h = finish_model_register(aniso);
+    finish_model_addref(h);  // a second finish (an object copy) still holds the original
+    const int moved = finish_model_with_tangent(h, Vec3(0, 2, 0));
+    ASSERT_NE(moved, h);
+    const FinishModel* m = finish_model_get(moved);
+    ASSERT_NE(m, nullptr);
+    EXPECT_EQ(m->tangent.y, 2.0);
+    EXPECT_EQ(m->brdf, aniso->brdf);
+    EXPECT_EQ(m->albedo, aniso->albedo);
+    EXPECT_EQ(finish_model_get(h)->tangent.x, 1.0);  // the other holder keeps its direction
+    // The frame follows: a light along the new tangent sees the lobe's ay = 0.3 side.
+    const Vec3 n(0, 0, 1), eye = normalize(Vec3(0.3, 0.4, 1.0));
+    const Frame fr = Frame::from_normal_tangent(n, Vec3(0, 1, 0));
+    const Rgb want = pov_weight(*aniso->brdf, fr.to_local(eye), fr.to_local(normalize(Vec3(-0.2, -0.5, 1.0))));
+    const Rgb got = finish_light_weight(*m, n, eye, normalize(Vec3(-0.2, -0.5, 1.0)), Rgb(1.0));
+    EXPECT_NEAR(got.g, want.g, 1e-12 * want.g);
+    finish_model_release(moved);
+    finish_model_release(h);
+    EXPECT_EQ(finish_model_live_count(), live);
+    // Isotropic models ignore the tangent: same handle back, nothing registered.
+    const int iso = finish_model_register(make_finish_model(make_brdf("microfacet d=beckmann m=0.3")));
+    EXPECT_EQ(finish_model_with_tangent(iso, Vec3(0, 1, 0)), iso);
+    finish_model_release(iso);
+    EXPECT_EQ(finish_model_with_tangent(0, Vec3(0, 1, 0)), 0);
+    EXPECT_EQ(finish_model_live_count(), live);
+}
+
+TEST(Finish, OneViewPerHitGivesTheSameBitsAsAFreshOne) {
+    // The renderer makes one FinishView per hit and reuses it for every light: the weights
+    // must equal those of finish_light_weight(model, ...) to the bit, for tables (the
+    // cosine path) and models (the frame path), isotropic and anisotropic.
+    BuildOptions fold;
+    fold.fold = true;
+    std::shared_ptr<const BrdfTable> t =
+        build_table(tabulate(*make_brdf("microfacet d=beckmann m=0.25 kd=0.2 rho_s=0.8"), TableGeometry::isotropic(2.0)),
+                    fold);
+    std::vector<std::shared_ptr<FinishModel>> models = {
+        make_finish_model(table_brdf(t, Interp::Linear)), make_finish_model(table_brdf(t, Interp::Nearest)),
+        make_finish_model(make_brdf("microfacet d=beckmann m=0.2 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8")),
+        make_finish_model(make_brdf("ward ax=0.05 ay=0.3 rho_s=0.3"))};
+    models.back()->tangent = Vec3(0.3, 1.0, 0.2);
+    uint64_t state = 99;
+    auto rnd = [&] {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        return double(state >> 11) * 0x1.0p-53;
+    };
+    auto dir = [&] { return normalize(Vec3(2 * rnd() - 1, 2 * rnd() - 1, 2 * rnd() - 1)); };
+    for (const auto& m : models) {
+        FinishView view;
+        for (int hit = 0; hit < 500; ++hit) {
+            const Vec3 n = dir(), eye = dir();
+            EXPECT_FALSE(view.is_for(*m, n, eye));
+            finish_view(*m, n, eye, &view);
+            ASSERT_TRUE(view.is_for(*m, n, eye));
+            for (int light = 0; light < 8; ++light) {
+                const Vec3 l = dir();
+                const Rgb a = finish_light_weight(view, l, Rgb(0.5, 0.7, 0.9));
+                const Rgb b = finish_light_weight(*m, n, eye, l, Rgb(0.5, 0.7, 0.9));
+                ASSERT_EQ(a.r, b.r);
+                ASSERT_EQ(a.g, b.g);
+                ASSERT_EQ(a.b, b.b);
+                if (!m->iso_table) {
+                    // The prepared viewer (Brdf::prepare_view, e.g. Smith's Lambda(wo)) is the
+                    // plain f(wo, wi) to the bit.
+                    const Rgb c = pov_weight(*m->brdf, view.wo, view.frame.to_local(l)) * m->scale;
+                    ASSERT_EQ(a.g, c.g);  // tint off: the pigment is not applied
+                }
+            }
+        }
+        // A copy with a new tangent is another model: the view does not fit it.
+        const int h = finish_model_register(m);
+        const int moved = finish_model_with_tangent(h, Vec3(0, 0, 1));
+        if (m->brdf->anisotropic()) {
+            EXPECT_FALSE(view.is_for(*finish_model_get(moved), view.n, view.to_eye));
+        }
+        finish_model_release(moved);
+    }
+}
+
+TEST(FinishRegistry, MaxReflectionSamplesOfLiveModels) {
+    const int before = finish_model_max_reflection_samples();
+    auto a = make_finish_model(make_brdf("lambert"));
+    a->reflection_samples = before + 7;
+    const int h = finish_model_register(a);
+    EXPECT_EQ(finish_model_max_reflection_samples(), before + 7);
+    finish_model_release(h);
+    EXPECT_EQ(finish_model_max_reflection_samples(), before);
+}
+
+TEST(Finish, PrefetchedLightGivesTheSameBits) {
+    // finish_light_prefetch locates a light (and prefetches its cells) before the renderer's
+    // shadow test; finish_light_weight then reuses that, or recomputes for any other light.
+    BuildOptions fold;
+    fold.fold = true;
+    std::shared_ptr<const BrdfTable> t =
+        build_table(tabulate(*make_brdf("microfacet d=beckmann m=0.2 kd=0.3 rho_s=0.7"), TableGeometry::isotropic(2.0)), fold);
+    for (Interp interp : {Interp::Linear, Interp::Nearest}) {
+        auto m = make_finish_model(table_brdf(t, interp));
+        const Vec3 n = normalize(Vec3(0.1, 0.2, 1.0)), eye = normalize(Vec3(0.4, -0.3, 1.0));
+        FinishView v;
+        finish_view(*m, n, eye, &v);
+        for (int k = 0; k < 200; ++k) {
+            const Vec3 l = normalize(Vec3(std::sin(0.37 * k), std::cos(0.53 * k), 0.2 + 0.01 * k));
+            const Rgb plain = finish_light_weight(*m, n, eye, l, Rgb(1.0));
+            finish_light_prefetch(&v, l);
+            const Rgb pre = finish_light_weight(v, l, Rgb(1.0));
+            ASSERT_EQ(pre.r, plain.r);
+            ASSERT_EQ(pre.b, plain.b);
+            const Vec3 other = normalize(l + Vec3(0.01, 0, 0));  // not the prefetched light
+            ASSERT_EQ(finish_light_weight(v, other, Rgb(1.0)).g, finish_light_weight(*m, n, eye, other, Rgb(1.0)).g);
+        }
+        finish_light_prefetch(&v, normalize(Vec3(0.3, 0.1, 1.0)));
+        EXPECT_TRUE(v.pending.valid);
+        finish_view(*m, n, normalize(Vec3(0, 0.5, 1.0)), &v);  // another hit: the prefetch is gone
+        EXPECT_FALSE(v.pending.valid);
+        finish_light_prefetch(&v, Vec3(0, 0, -1));  // a light below the surface: nothing to read
+        EXPECT_FALSE(v.pending.valid);
+    }
+}
+
+TEST(FinishRegistry, ViewOfAHandleNeedsNoLookupUntilTheRegistryChanges) {
+    auto m = make_finish_model(make_brdf("microfacet d=beckmann m=0.3"));
+    const int h = finish_model_register(m);
+    const Vec3 n(0, 0, 1), eye = normalize(Vec3(0.2, 0.1, 1.0));
+    FinishView v;
+    ASSERT_EQ(finish_view_of(h, n, eye, &v), &v);
+    EXPECT_EQ(v.model, m.get());
+    EXPECT_EQ(v.handle, h);
+    const std::uint64_t g = v.generation;
+    EXPECT_EQ(g, finish_model_generation());
+    ASSERT_EQ(finish_view_of(h, n, eye, &v), &v);  // same key: kept
+    EXPECT_EQ(v.generation, g);
+    // Another registration changes the generation: the next call looks the handle up again.
+    const int other = finish_model_register(make_finish_model(make_brdf("lambert")));
+    EXPECT_NE(finish_model_generation(), g);
+    ASSERT_EQ(finish_view_of(h, n, eye, &v), &v);
+    EXPECT_EQ(v.model, m.get());
+    EXPECT_EQ(v.generation, finish_model_generation());
+    finish_model_release(other);
+    // A released handle has no model: no view.
+    finish_model_release(h);
+    EXPECT_EQ(finish_view_of(h, n, eye, &v), nullptr);
+    EXPECT_EQ(finish_view_of(0, n, eye, &v), nullptr);
+}

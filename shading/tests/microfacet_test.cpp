@@ -12,8 +12,10 @@
 #include "shading/microfacet.h"
 #include "shading/model_spec.h"
 #include "shading/models.h"
+#include "sampling_check.h"
 
 using namespace shading;
+using namespace shading_test;
 
 namespace {
 
@@ -29,130 +31,6 @@ double simpson(const std::function<double(double)>& f, double a, double b, int n
 // Hemispherical integral of an isotropic g(cos theta) cos theta dw = 2 pi int g cos sin dtheta.
 double integrate_isotropic(const std::function<double(double)>& g, double theta_max = kPi / 2, int n = 100000) {
     return 2.0 * kPi * simpson([&](double t) { return g(std::cos(t)) * std::cos(t) * std::sin(t); }, 0.0, theta_max, n);
-}
-
-// Regularised upper incomplete gamma Q(a, x) (series / Lentz continued fraction).
-double gamma_q(double a, double x) {
-    if (x <= 0) return 1.0;
-    double lg = -x + a * std::log(x) - std::lgamma(a);
-    if (x < a + 1.0) {
-        double ap = a, sum = 1.0 / a, del = sum;
-        for (int i = 0; i < 10000; ++i) {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if (std::abs(del) < std::abs(sum) * 1e-15) break;
-        }
-        return std::max(0.0, 1.0 - sum * std::exp(lg));
-    }
-    const double tiny = 1e-300;
-    double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
-    for (int i = 1; i < 10000; ++i) {
-        double an = -i * (i - a);
-        b += 2.0;
-        d = an * d + b;
-        if (std::abs(d) < tiny) d = tiny;
-        c = b + an / c;
-        if (std::abs(c) < tiny) c = tiny;
-        d = 1.0 / d;
-        double del = d * c;
-        h *= del;
-        if (std::abs(del - 1.0) < 1e-15) break;
-    }
-    return std::exp(lg) * h;
-}
-
-// Uniform double in [0, 1) from a seeded 64-bit Mersenne twister (portable, unlike
-// std::uniform_real_distribution).
-struct Rng {
-    std::mt19937_64 g;
-    explicit Rng(uint64_t seed) : g(seed) {}
-    double operator()() { return double(g() >> 11) * 0x1.0p-53; }
-};
-
-struct Chi2 {
-    double chi2 = 0, p = 0;
-    int dof = 0;
-    double valid_fraction = 0, pdf_mass = 0;
-};
-
-// Chi-square goodness of fit of sample() against pdf() (pbrt-v4 style): histogram of wi over
-// (theta, phi) cells of the upper hemisphere plus one cell for "no sample"; expected counts
-// from pdf() integrated by 2-D Simpson; cells with expected < 5 pooled.
-// kSub: Simpson intervals per cell and axis (raise it for lobes narrower than a cell).
-Chi2 chi2_test(const std::function<Vec3(double, double)>& sample, const std::function<double(const Vec3&)>& pdf,
-               int n, uint64_t seed, int kSub = 8) {
-    const int kT = 16, kP = 32;
-    std::vector<double> obs(kT * kP + 1, 0.0), expv(kT * kP + 1, 0.0);
-    Rng rng(seed);
-    int valid = 0;
-    for (int s = 0; s < n; ++s) {
-        double u1 = rng(), u2 = rng();
-        Vec3 w = sample(u1, u2);
-        if (!(w.z > 0)) {
-            obs.back() += 1;
-            continue;
-        }
-        ++valid;
-        double t = safe_acos(w.z), ph = std::atan2(w.y, w.x);
-        if (ph < 0) ph += 2 * kPi;
-        int it = std::min(kT - 1, int(t / (kPi / 2) * kT)), ip = std::min(kP - 1, int(ph / (2 * kPi) * kP));
-        obs[it * kP + ip] += 1;
-    }
-    double mass = 0;
-    for (int it = 0; it < kT; ++it)
-        for (int ip = 0; ip < kP; ++ip) {
-            double t0 = it * (kPi / 2) / kT, t1 = (it + 1) * (kPi / 2) / kT;
-            double p0 = ip * 2 * kPi / kP, p1 = (ip + 1) * 2 * kPi / kP;
-            double ht = (t1 - t0) / kSub, hp = (p1 - p0) / kSub, sum = 0;
-            for (int a = 0; a <= kSub; ++a)
-                for (int b = 0; b <= kSub; ++b) {
-                    double wa = (a == 0 || a == kSub) ? 1 : (a % 2 ? 4 : 2);
-                    double wb = (b == 0 || b == kSub) ? 1 : (b % 2 ? 4 : 2);
-                    double t = t0 + a * ht, ph = p0 + b * hp;
-                    sum += wa * wb * pdf(spherical_direction(t, ph)) * std::sin(t);
-                }
-            double e = sum * ht * hp / 9.0;
-            expv[it * kP + ip] = e * n;
-            mass += e;
-        }
-    expv.back() = std::max(0.0, 1.0 - mass) * n;
-
-    Chi2 r;
-    r.valid_fraction = double(valid) / n;
-    r.pdf_mass = mass;
-    // Pool low-expectation cells, smallest first, until the pool reaches 5.
-    std::vector<int> idx(obs.size());
-    for (size_t i = 0; i < idx.size(); ++i) idx[i] = int(i);
-    std::sort(idx.begin(), idx.end(), [&](int a, int b) { return expv[a] < expv[b]; });
-    double pool_o = 0, pool_e = 0;
-    int cells = 0;
-    for (int i : idx) {
-        if (expv[i] == 0 && obs[i] > 0) {  // a sample where pdf() says none can be
-            r.p = 0;
-            r.chi2 = INFINITY;
-            return r;
-        }
-        if (expv[i] < 5) {
-            pool_o += obs[i];
-            pool_e += expv[i];
-            if (pool_e >= 5) {
-                r.chi2 += sqr(pool_o - pool_e) / pool_e;
-                ++cells;
-                pool_o = pool_e = 0;
-            }
-            continue;
-        }
-        r.chi2 += sqr(obs[i] - expv[i]) / expv[i];
-        ++cells;
-    }
-    if (pool_e > 0) {
-        r.chi2 += sqr(pool_o - pool_e) / pool_e;
-        ++cells;
-    }
-    r.dof = cells - 1;
-    r.p = gamma_q(r.dof / 2.0, r.chi2 / 2.0);
-    return r;
 }
 
 const DKind kAllD[] = {DKind::Blinn, DKind::Gaussian, DKind::TrowbridgeReitz, DKind::Beckmann};

@@ -8,6 +8,13 @@
 
 namespace shading {
 
+// What a model may compute once for a viewer direction and reuse for every light at one
+// shading point (FinishView), e.g. the Smith masking of wo. Opaque to everyone but the model.
+struct BrdfViewCache {
+    double v[2] = {0, 0};
+    bool valid = false;
+};
+
 class Brdf {
 public:
     virtual ~Brdf() = default;
@@ -39,6 +46,17 @@ public:
     // the default mixture: unbiased, with some rays spent on the base's directions).
     virtual Vec3 sample_glossy(const Vec3& wo, double u1, double u2) const { return sample(wo, u1, u2); }
     virtual double pdf_glossy(const Vec3& wo, const Vec3& wi) const { return pdf(wo, wi); }
+
+    // Per-viewer precomputation: prepare_view(wo) once, then f_view(wo, wi, cache) for each
+    // light, which must equal f(wo, wi) to the bit. The default keeps nothing.
+    virtual void prepare_view(const Vec3& wo, BrdfViewCache* cache) const {
+        (void)wo;
+        cache->valid = false;
+    }
+    virtual Rgb f_view(const Vec3& wo, const Vec3& wi, const BrdfViewCache& cache) const {
+        (void)cache;
+        return f(wo, wi);
+    }
 };
 
 // The default sampler of Brdf::sample()/pdf(): exponents of its mirror lobes.
@@ -59,6 +77,11 @@ using BrdfPtr = std::shared_ptr<const Brdf>;
 inline Rgb pov_weight(const Brdf& brdf, const Vec3& wo, const Vec3& wi) {
     if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
     return brdf.f(wo, wi) * (kPi * wi.z);
+}
+// The same through a prepared viewer (Brdf::prepare_view): the same bits.
+inline Rgb pov_weight(const Brdf& brdf, const Vec3& wo, const Vec3& wi, const BrdfViewCache& cache) {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    return brdf.f_view(wo, wi, cache) * (kPi * wi.z);
 }
 
 }  // namespace shading

@@ -89,7 +89,57 @@ struct FinishModel {
     // handle released with the last of them.
     std::shared_ptr<const ModelHandle> transmittance;
     int transmittance_handle() const;
+    // Which model this is, unique in the process (a FinishView remembers it). A copy that
+    // changes anything a view depends on needs a fresh one (next_finish_serial()).
+    std::uint64_t serial = next_finish_serial();
+    static std::uint64_t next_finish_serial();
 };
+
+// What every light at one shading point shares, computed once per hit: the model, the normal
+// and the direction to the eye it was made for, and what the lookup needs of them (the
+// viewer's theta_r position in an isotropic table; otherwise the local frame and the viewer
+// in it). finish_light_weight(view, ...) then costs one table read or model evaluation per
+// light. A view is a pure function of (model, n, to_eye): reusing one or making it afresh
+// gives the same bits.
+struct FinishView {
+    const FinishModel* model = nullptr;
+    std::uint64_t serial = 0;  // model->serial
+    int handle = 0;                  // finish_view_of: the handle it was made for, and the
+    std::uint64_t generation = 0;    //   registry generation then
+    Vec3 n, to_eye;
+    double cos_o = 0, sin2_o = 0;  // n . to_eye and 1 - cos_o^2
+    BrdfTable::AxisPos theta_r;    // isotropic tables
+    Frame frame;                   // other models
+    Vec3 wo;
+    BrdfViewCache brdf;            //   and what the model keeps of wo (Brdf::prepare_view)
+    // The light finish_light_prefetch was last asked about, and its table coordinates.
+    struct Pending {
+        Vec3 to_light;
+        bool valid = false;
+        double cos_i = 0;
+        BrdfTable::IsoRead read;
+    } pending;
+    // Whether this view was made for `m` at (n, to_eye), bit for bit.
+    bool is_for(const FinishModel& m, const Vec3& n_, const Vec3& to_eye_) const {
+        return serial == m.serial && n.x == n_.x && n.y == n_.y && n.z == n_.z && to_eye.x == to_eye_.x &&
+               to_eye.y == to_eye_.y && to_eye.z == to_eye_.z;
+    }
+};
+void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, FinishView* view);
+// The renderer's form, per light: `view` itself when it was made for this handle, normal and
+// eye and no handle has changed its model since (finish_model_generation: no registry
+// lookup), else remade (finish_view_remake); null for a handle without a model.
+namespace detail {
+extern std::atomic<std::uint64_t> finish_generation;
+}
+inline std::uint64_t finish_model_generation() { return detail::finish_generation.load(std::memory_order_acquire); }
+const FinishView* finish_view_remake(int handle, const Vec3& n, const Vec3& to_eye, FinishView* view);
+inline const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
+    if (handle != 0 && v->handle == handle && v->generation == finish_model_generation() && v->n.x == n.x &&
+        v->n.y == n.y && v->n.z == n.z && v->to_eye.x == to_eye.x && v->to_eye.y == to_eye.y && v->to_eye.z == to_eye.z)
+        return v;
+    return finish_view_remake(handle, n, to_eye, v);
+}
 
 // A finish model around `brdf`, its directional albedo to be computed on first use
 // (AlbedoNodes).
@@ -121,6 +171,9 @@ struct SharedTableStats {
     std::size_t live_tables = 0, live_bytes = 0;  // now
     std::size_t peak_tables = 0, peak_bytes = 0;  // highest since the process started
     std::size_t loads = 0, reuses = 0;            // files read, and requests served from memory
+    // Sampling data of tables that glossy rays (`samples N`) sample (TableSampler, built on
+    // first use, one per table): bytes now and at most.
+    std::size_t sampler_bytes = 0, peak_sampler_bytes = 0;
 };
 SharedTableStats shared_table_stats();
 
@@ -132,16 +185,38 @@ void finish_model_addref(int handle);
 void finish_model_release(int handle);
 const FinishModel* finish_model_get(int handle);
 std::size_t finish_model_live_count();
+// The largest `samples` (reflection_samples) among the live finish models, 0 if none: the
+// parser's estimate of what glossy rays will cost with area lights.
+int finish_model_max_reflection_samples();
+// finish_model_generation() (above, inline): a number that changes whenever some handle
+// starts or stops naming a model (registration, last release); a handle read at one
+// generation names the same model while it is current.
+
+// The model of `handle` with its world-space tangent (the anisotropy `direction`) replaced,
+// for finishes that move with their object or texture (POV's transforms): a new registered
+// model sharing the BRDF and its albedo, and the caller's reference moves from `handle` to
+// the returned handle. A model whose BRDF is not anisotropic never reads its tangent and
+// comes back unchanged (same handle); so does handle 0.
+int finish_model_with_tangent(int handle, const Vec3& tangent);
 
 // POV's contribution of one light: pixel += finish_light_weight(...) * light colour.
 // n: unit shading normal; to_eye, to_light: unit vectors leaving the surface (world
 // space). Applies pov_weight() (pi * f * cos_i), the user scale and the optional tint.
+// The renderer makes one FinishView per hit and calls the view form for each light; the
+// other form makes the view itself (same result).
+Rgb finish_light_weight(const FinishView& view, const Vec3& to_light, const Rgb& pigment);
+// Starts reading the table cells a light will need (isotropic tables; a no-op otherwise) and
+// remembers their coordinates in the view: called before the renderer's shadow test, it lets
+// the memory latency of the read overlap the test; finish_light_weight for the same light
+// then uses them (the same bits as without).
+void finish_light_prefetch(FinishView* view, const Vec3& to_light);
 Rgb finish_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_eye, const Vec3& to_light,
                         const Rgb& pigment);
 
-// Lights for which POV computes no highlight (radiosity gather rays, fill lights): the model
-// acts as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos
-// (by reciprocity the light's reflectance; approximate for POV's non-reciprocal phong/specular).
+// Lights seen by radiosity gather rays (for which POV computes no highlight): the model acts
+// as a Lambertian surface of its directional albedo at the light, weight a(theta_l) cos (by
+// reciprocity the light's reflectance; approximate for POV's non-reciprocal phong/specular).
+// Fill (shadowless) lights get the full model (finish_light_weight), unlike POV's highlights.
 Rgb finish_diffuse_light_weight(const FinishModel& model, const Vec3& n, const Vec3& to_light, const Rgb& pigment);
 
 // Indirect (radiosity) light: uniform incident light reflects a(theta_eye) of it, so POV's

@@ -257,6 +257,9 @@ struct Microfacet final : Brdf {
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
     std::string describe() const override;
     double geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const;
+    // Smith: Lambda(wo) once per viewer (the lights of a shading point share it).
+    void prepare_view(const Vec3& wo, BrdfViewCache* cache) const override;
+    Rgb f_view(const Vec3& wo, const Vec3& wi, const BrdfViewCache& cache) const override;
 
     Rgb lambert_base() const override { return kd; }
 
@@ -275,6 +278,8 @@ struct Microfacet final : Brdf {
 private:
     Vec3 sample_mix(const Vec3& wo, double u1, double u2, double ps) const;
     double pdf_mix(const Vec3& wo, const Vec3& wi, double ps) const;
+    // f with the Smith Lambda of wo given (nullptr: computed here).
+    Rgb f_lambda(const Vec3& wo, const Vec3& wi, const double* lambda_o) const;
 };
 
 }  // namespace shading

@@ -39,9 +39,11 @@
 // construction: lookups are const, lock-free and safe from any number of threads.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -49,6 +51,8 @@
 #include "shading/brdf.h"
 
 namespace shading {
+
+class TableSampler;  // table_sampler.h
 
 // Every loader/validation failure. Messages read "NAME: offset N: expected X, found Y",
 // N being the byte offset in the file (or buffer) where the problem was found.
@@ -133,11 +137,24 @@ public:
     // and computes the directional albedo.
     BrdfTable(const TableGeometry& geometry, std::vector<float> values, TableInfo info = {},
               Interp interp = Interp::Linear);
+    ~BrdfTable() override;
+    // A copy has the same data and builds its own sampler when asked.
+    BrdfTable(const BrdfTable& other);
+    BrdfTable& operator=(const BrdfTable&) = delete;
 
     Rgb f(const Vec3& wo, const Vec3& wi) const override { return f(wo, wi, interp_); }
     Rgb f(const Vec3& wo, const Vec3& wi, Interp interp) const;
     bool anisotropic() const override { return geom_.layout == TableLayout::Anisotropic; }
     std::string describe() const override;
+
+    // Importance sampling from the table's own data (isotropic tables: TableSampler, built on
+    // the first call and shared by everything that holds the table; sample_glossy/pdf_glossy
+    // are the same, a table having no Lambertian base). Anisotropic tables keep Brdf's
+    // generic mixture.
+    Vec3 sample(const Vec3& wo, double u1, double u2) const override;
+    double pdf(const Vec3& wo, const Vec3& wi) const override;
+    const TableSampler* sampler() const;  // null for anisotropic tables
+    size_t sampler_bytes() const;          // 0 until the sampler is built
 
     // Lookups by angle, radians. Isotropic tables: phi = phi_r - phi_i, any real value.
     // Anisotropic tables given (theta_i, theta_r, phi) use phi_i = 0, phi_r = phi.
@@ -153,6 +170,50 @@ public:
     // roots, two atan2 and one acos, no frame: the renderer's per-light path (finish.cpp).
     Rgb eval_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp) const;
     bool halfdiff() const { return geom_.layout == TableLayout::HalfDiff; }
+    // The renderer's per-light lookup (isotropic tables; others fall back to eval_iso): from
+    // cos(theta_i), cos(theta_r) and cos(phi), the angles through acos_approx (vec.h, within
+    // 8e-11 rad: 5e-9 of a 1 deg cell) instead of libm's acos/atan2. Inputs are clamped to
+    // [0, 1] / [-1, 1]; NaN reads as 90 deg.
+    Rgb eval_iso_cos(double cos_i, double cos_r, double cos_phi, Interp interp) const;
+    // The same in two steps, for many lights seen from one viewer: the viewer's place on the
+    // theta_r axis once (isotropic tables only), then each light.
+    struct AxisPos {
+        uint32_t i0 = 0, i1 = 0;
+        double t = 0;  // weight of i1
+    };
+    AxisPos locate_theta_r_cos(double cos_r, Interp interp) const;
+    Rgb eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const;
+    // The same in two steps: prepare_iso_cos locates the light, finds the four rows the
+    // read needs and prefetches them (so their memory latency can overlap other work, such
+    // as the renderer's shadow test); read_iso interpolates. Same bits as eval_iso_cos.
+    struct IsoRead {
+        const float* row[4] = {nullptr, nullptr, nullptr, nullptr};  // (i0,r0) (i1,r0) (i0,r1) (i1,r1) at phi i0
+        uint32_t dphi = 0;        // floats from a row's first phi node to its second
+        double t_i = 0, t_r = 0, t_phi = 0;
+        int channels = 3;
+        bool nearest = false;     // row[0] alone
+    };
+    void prepare_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp, IsoRead* read) const;
+    // Trilinear as three rounds of linear interpolation a + t (b - a): phi inside each of the
+    // four (theta_i, theta_r) rows, then theta_i, then theta_r (about half the arithmetic of
+    // gather()'s eight weighted corners, and a short dependency chain on the renderer's
+    // per-light path; inline, so the renderer's call site holds it). t = 0 returns a node
+    // exactly; t = 1 returns it to within the rounding of b - a (exact unless the two values
+    // differ by 2^29 or more). The two phi nodes of a row are neighbours in memory.
+    static Rgb read_iso(const IsoRead& rd) {
+        const int C = rd.channels;
+        if (rd.nearest) {
+            const float* p = rd.row[0];
+            return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
+        }
+        auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
+        auto channel = [&](int c) {
+            double r[4];
+            for (int k = 0; k < 4; ++k) r[k] = lerp(double(rd.row[k][c]), double(rd.row[k][rd.dphi + c]), rd.t_phi);
+            return lerp(lerp(r[0], r[1], rd.t_i), lerp(r[2], r[3], rd.t_i), rd.t_r);
+        };
+        return C == 1 ? Rgb(channel(0)) : Rgb(channel(0), channel(1), channel(2));
+    }
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
     float node(uint32_t a0, uint32_t a1, uint32_t a2, uint32_t a3, int channel) const;
@@ -175,13 +236,15 @@ public:
     size_t bytes_used() const;
 
 private:
-    struct AxisPos {
-        uint32_t i0, i1;
-        double t;  // weight of i1
-    };
     AxisPos locate(int axis, double deg, Interp interp) const;
+    // locate() of a non-periodic axis (theta, or iso phi) at deg already in its range.
+    AxisPos locate_in_range(int axis, double deg, Interp interp) const;
     uint64_t offset(const uint32_t idx[4]) const;  // of channel 0, in floats
     Rgb gather(const AxisPos pos[4], Interp interp) const;
+    // Isotropic lookup at positions on the three axes: trilinear by nested linear
+    // interpolation (the same function as gather(), within rounding).
+    Rgb gather_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp) const;
+    void rows_iso(const AxisPos& ti, const AxisPos& tr, const AxisPos& phi, Interp interp, IsoRead* read) const;
     void average_poles();
     void compute_albedo();
     // Half/difference layout (table_halfdiff.cpp).
@@ -207,6 +270,10 @@ private:
     // virtual pole nodes; pole_hd_ both at once (the (0, 0) row's mean).
     std::vector<float> pole_h_, pole_d_;
     float pole_hd_[3] = {0, 0, 0};
+    std::vector<uint64_t> fold_row_;  // folded tables: offset of pair (a, a) minus a rows, per a
+    mutable std::once_flag sampler_once_;
+    mutable std::unique_ptr<const TableSampler> sampler_;
+    mutable std::atomic<const TableSampler*> sampler_ready_{nullptr};
 };
 
 // ---------------------------------------------------------------- building tables

@@ -1,0 +1,324 @@
+// The renderer's per-light table lookup from cosines (acos_approx, eval_iso_cos) and the
+// table's own importance sampler (TableSampler): chi-square of sample() against pdf(),
+// unbiasedness against an independent integration, support, memory and sharing.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "sampling_check.h"
+#include "shading/finish.h"
+#include "shading/model_spec.h"
+#include "shading/table.h"
+#include "shading/table_sampler.h"
+
+using namespace shading;
+using namespace shading_test;
+
+namespace {
+
+double deg(double d) { return d * kDegree; }
+
+// The white-furnace BRDF of issue 16: Beckmann m = 0.3, height-correlated Smith, F = 1.
+const char* kFurnaceSpec = "microfacet d=beckmann m=0.3";
+
+std::shared_ptr<const BrdfTable> make_table(const std::string& spec, double step, bool fold, int channels = 3,
+                                            Interp interp = Interp::Linear) {
+    BuildOptions o;
+    o.fold = fold;
+    o.interp = interp;
+    return build_table(tabulate(*make_brdf(spec), TableGeometry::isotropic(step, channels)), o);
+}
+
+// Directional albedo of the interpolated table by a dense midpoint rule over the hemisphere
+// (0.1 x 0.1 deg cells, exact cos sin weights per band): shares nothing with the sampler.
+Rgb midpoint_albedo(const BrdfTable& t, const Vec3& wo) {
+    const int nt = 900, np = 1800;
+    Rgb sum;
+    for (int i = 0; i < nt; ++i) {
+        const double a = deg(i * 0.1), b = deg((i + 1) * 0.1);
+        const double band = 0.5 * (sqr(std::sin(b)) - sqr(std::sin(a))) * (2 * kPi / np);
+        const double th = 0.5 * (a + b);
+        Rgb ring;
+        for (int k = 0; k < np; ++k) ring += t.f(wo, spherical_direction(th, (k + 0.5) * 2 * kPi / np));
+        sum += ring * band;
+    }
+    return sum;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- lookups from cosines
+
+TEST(AcosApprox, WithinBoundMonotoneAndExactAtTheEnds) {
+    double prev = acos_approx(-1.0), worst = 0;
+    EXPECT_EQ(prev, kPi);
+    const int n = 2000000;
+    for (int i = 1; i <= n; ++i) {
+        const double x = -1.0 + 2.0 * i / n, v = acos_approx(x);
+        worst = std::max(worst, std::abs(v - std::acos(x)));
+        ASSERT_LE(v, prev) << x;  // decreasing: interpolation weights never run backwards
+        prev = v;
+    }
+    EXPECT_LT(worst, 1e-10);
+    EXPECT_EQ(acos_approx(1.0), 0.0);
+    EXPECT_EQ(acos_approx(0.0), kPi / 2);
+    EXPECT_EQ(acos_approx(-0.0), kPi / 2);
+    EXPECT_EQ(acos_approx(1.5), 0.0);  // clamped
+    EXPECT_EQ(acos_approx(-7.0), kPi);
+    EXPECT_EQ(acos_approx(std::nan("")), kPi / 2);
+    // Both halves meet: acos(-x) = pi - acos(x) to the last bit.
+    for (double x : {1e-300, 1e-9, 0.3, 0.7071, 0.999999}) EXPECT_EQ(acos_approx(-x), kPi - acos_approx(x)) << x;
+}
+
+TEST(TableLookup, CosineLookupEqualsTheAngleLookup) {
+    Rng rng(2024);
+    for (bool fold : {false, true})
+        for (int channels : {1, 3}) {
+            auto t = make_table("microfacet d=beckmann m=0.2 f=dielectric eta=1.5 kd=0.3 rho_s=0.7", 2.0, fold, channels);
+            double scale = 0;
+            for (float v : t->values()) scale = std::max(scale, double(v));
+            for (int s = 0; s < 20000; ++s) {
+                const double ti = rng() * kPi / 2, tr = rng() * kPi / 2, phi = rng() * kPi;
+                const Rgb want = t->eval_iso(ti, tr, phi, Interp::Linear);
+                const Rgb got = t->eval_iso_cos(std::cos(ti), std::cos(tr), std::cos(phi), Interp::Linear);
+                // 1e-10 rad on a 2 deg cell moves the weights by 3e-9.
+                for (int c = 0; c < 3; ++c) ASSERT_NEAR(got[c], want[c], 1e-8 * scale) << ti << " " << tr << " " << phi;
+            }
+        }
+}
+
+// ---------------------------------------------------------------- the sampler
+
+TEST(TableSampler, ChiSquareSampleMatchesPdf) {
+    struct Case {
+        const char* spec;
+        double step;
+        bool fold;
+        int channels;
+        double theta_o, phi_o;
+    };
+    // Histogram cells are unions of table cells (5 deg for 1 and 5 deg tables, 10 deg for the
+    // 2 deg table) or quarters of them (10 deg table), so the pdf is smooth inside every
+    // quadrature sub-cell; viewers on nodes, between nodes, at the pole and near grazing.
+    const Case cases[] = {
+        {kFurnaceSpec, 1.0, true, 3, 30.4, 0},
+        {kFurnaceSpec, 1.0, true, 3, 60.0, 0},
+        {kFurnaceSpec, 1.0, true, 3, 0.0, 0},
+        {kFurnaceSpec, 1.0, true, 3, 85.7, 20},
+        {"microfacet d=tr m=0.1 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8 kd=0.2 rho_s=0.8", 1.0, false, 3, 45.5, 0},
+        {"microfacet d=beckmann m=0.05 f=dielectric eta=1.5", 1.0, true, 3, 20.2, 0},  // cells of zero
+        {"ward alpha=0.1 rho_d=0.2 rho_s=0.5", 2.0, false, 3, 70.3, 0},
+        {"phong_pov phong=0.6 phong_size=20 diffuse=0.3", 5.0, false, 1, 37.0, 0},
+        // Histogram cells a quarter of a table cell: the density inside a cell (cos-weighted)
+        // is tested too, not only the cells' probabilities.
+        {"microfacet d=beckmann m=0.4 kd=0.3 rho_s=0.7", 10.0, true, 3, 33.0, 0},
+    };
+    const int kTests = sizeof(cases) / sizeof(cases[0]);
+    const double alpha = 0.01, sidak = 1.0 - std::pow(1.0 - alpha, 1.0 / kTests);
+    uint64_t seed = 4242;
+    for (const Case& c : cases) {
+        auto t = make_table(c.spec, c.step, c.fold, c.channels);
+        const Vec3 wo = spherical_direction(deg(c.theta_o), deg(c.phi_o));
+        const int kT = c.step == 2.0 ? 9 : 18, kP = 4 * kT, kSub = c.step >= 5.0 ? 1 : 5;
+        Chi2 r = chi2_test([&](double u1, double u2) { return t->sample(wo, u1, u2); },
+                           [&](const Vec3& wi) { return t->pdf(wo, wi); }, 200000, seed++, kSub, kT, kP,
+                           Quadrature::Gauss);
+        EXPECT_GT(r.p, sidak) << c.spec << " theta_o=" << c.theta_o << ": chi2=" << r.chi2 << " dof=" << r.dof;
+        EXPECT_GT(r.dof, 20) << c.spec;
+        EXPECT_NEAR(r.pdf_mass, 1.0, 2e-3) << c.spec;  // every sample is valid
+        EXPECT_NEAR(r.valid_fraction, 1.0, 1e-4) << c.spec;
+    }
+}
+
+TEST(TableSampler, ChiSquareDetectsAWrongPdf) {
+    // The test has power: samples of the m = 0.3 table against the pdf of an m = 0.32 table.
+    auto right = make_table(kFurnaceSpec, 1.0, true), wrong = make_table("microfacet d=beckmann m=0.32", 1.0, true);
+    const Vec3 wo = spherical_direction(deg(30.4), 0);
+    Chi2 r = chi2_test([&](double u1, double u2) { return right->sample(wo, u1, u2); },
+                       [&](const Vec3& wi) { return wrong->pdf(wo, wi); }, 200000, 99, 5, 18, 72, Quadrature::Gauss);
+    EXPECT_LT(r.p, 1e-6);
+}
+
+TEST(TableSampler, EstimatorIsUnbiased) {
+    // White furnace of the table: the mean of f cos / pdf over sampled directions is the
+    // directional albedo of the interpolated table (a midpoint rule, independent of the
+    // sampler), within 0.3 %; and it agrees with the table's own albedo nodes.
+    auto t = make_table(kFurnaceSpec, 1.0, true);
+    Rng rng(11);
+    for (double th : {0.0, 25.5, 60.0, 80.3}) {
+        const Vec3 wo = spherical_direction(deg(th), deg(10.0));
+        const int n = 200000;
+        Rgb sum;
+        double sum2 = 0;
+        for (int s = 0; s < n; ++s) {
+            const Vec3 wi = t->sample(wo, rng(), rng());
+            if (!(wi.z > 0)) continue;
+            const Rgb v = t->f(wo, wi) * (wi.z / t->pdf(wo, wi));
+            sum += v;
+            sum2 += sqr(v.g);
+        }
+        const Rgb est = sum / n, want = midpoint_albedo(*t, wo);
+        const double sd = std::sqrt(std::max(0.0, sum2 / n - sqr(est.g)) / n);
+        EXPECT_NEAR(est.g / want.g, 1.0, 3e-3) << "theta_o " << th << " (standard error " << sd / want.g << ")";
+        EXPECT_LT(sd / want.g, 1e-3) << "theta_o " << th;  // importance sampling: small variance
+        EXPECT_NEAR(t->directional_albedo(deg(th)).g / want.g, 1.0, 3e-3) << th;
+    }
+}
+
+TEST(TableSampler, SamplesOnlyWhereTheTableIsPositive) {
+    // A narrow lobe (m = 0.05) leaves most of a 1 deg table exactly zero: no sample may land
+    // where f = 0, and the pdf is zero there but positive wherever f is.
+    auto t = make_table("microfacet d=beckmann m=0.05", 1.0, true);
+    const Vec3 wo = spherical_direction(deg(40.5), 0);
+    Rng rng(5);
+    int zeros = 0, checked = 0;
+    for (int s = 0; s < 50000; ++s) {
+        const Vec3 wi = t->sample(wo, rng(), rng());
+        ASSERT_GT(wi.z, 0.0);
+        EXPECT_NEAR(length(wi), 1.0, 1e-12);
+        ASSERT_GT(t->pdf(wo, wi), 0.0);
+        zeros += t->f(wo, wi).g == 0.0;
+    }
+    EXPECT_EQ(zeros, 0);
+    for (int s = 0; s < 200000; ++s) {
+        const Vec3 wi = spherical_direction(std::acos(rng()), 2 * kPi * rng());
+        const bool f_pos = t->f(wo, wi).max_component() > 0, p_pos = t->pdf(wo, wi) > 0;
+        if (f_pos) {
+            ASSERT_TRUE(p_pos) << wi.x << " " << wi.y << " " << wi.z;
+        }
+        checked += !p_pos;
+    }
+    EXPECT_GT(checked, 100000);  // most of the hemisphere has no lobe: the sampler knows
+    EXPECT_EQ(t->pdf(wo, Vec3(0, 0, -1)), 0.0);
+    EXPECT_EQ(t->sample(Vec3(0, 0, -1), 0.5, 0.5).z, 0.0);  // viewer below: no sample
+}
+
+TEST(TableSampler, BuiltOnceSharedAndCounted) {
+    const size_t before = TableSampler::memory().live;
+    size_t bytes = 0;
+    {
+        auto t = make_table(kFurnaceSpec, 1.0, true);
+        EXPECT_EQ(t->sampler_bytes(), 0u);  // nothing until glossy rays ask
+        const TableSampler* s = t->sampler();
+        ASSERT_NE(s, nullptr);
+        EXPECT_EQ(t->sampler(), s);
+        bytes = t->sampler_bytes();
+        // 91 theta_o nodes x 90 x 180 cells x 2 bytes, plus the marginals: about 2.9 MB, a third
+        // of the folded RGB payload.
+        EXPECT_GT(bytes, 91u * 90 * 180 * 2);
+        EXPECT_LT(bytes, 91u * 90 * 180 * 2 + 100000);
+        EXPECT_LT(double(bytes), 0.4 * double(t->values().size() * sizeof(float)));
+        EXPECT_EQ(TableSampler::memory().live, before + bytes);
+        EXPECT_GE(TableSampler::memory().peak, before + bytes);
+        // A finish on the table samples through the same sampler.
+        auto m = make_finish_model(table_brdf(t, Interp::Nearest));
+        EXPECT_EQ(m->brdf->pdf(Vec3(0, 0, 1), normalize(Vec3(0.1, 0.2, 1))),
+                  t->pdf(Vec3(0, 0, 1), normalize(Vec3(0.1, 0.2, 1))));
+        EXPECT_EQ(t->sampler_bytes(), bytes);
+    }
+    EXPECT_EQ(TableSampler::memory().live, before);
+    // Anisotropic tables keep the generic mixture.
+    BuildOptions o;
+    auto a = build_table(tabulate(*make_brdf("ward ax=0.1 ay=0.3"), TableGeometry::anisotropic(15.0, 30.0)), o);
+    EXPECT_EQ(a->sampler(), nullptr);
+    const Vec3 wo = spherical_direction(deg(30), 0);
+    EXPECT_EQ(a->pdf(wo, Vec3(0, 0, 1)), a->Brdf::pdf(wo, Vec3(0, 0, 1)));
+}
+
+TEST(TableSampler, ConcurrentFirstUseBuildsOne) {
+    auto t = make_table(kFurnaceSpec, 2.0, true);
+    std::vector<const TableSampler*> seen(4, nullptr);
+    std::vector<std::thread> threads;
+    std::atomic<int> go{0};
+    for (int i = 0; i < 4; ++i)
+        threads.emplace_back([&, i] {
+            while (go.load() == 0) {
+            }
+            seen[i] = t->sampler();
+            (void)t->sample(spherical_direction(deg(20 + i), 0), 0.3, 0.6);
+        });
+    go = 1;
+    for (auto& th : threads) th.join();
+    for (int i = 1; i < 4; ++i) EXPECT_EQ(seen[i], seen[0]);
+}
+
+TEST(TableSampler, FinishReflectionOfATableIsItsAlbedo) {
+    // finish_reflection_sample on a table finish (the renderer's glossy rays): 400 hit points
+    // x 64 stratified rays average to the table's directional albedo.
+    auto t = make_table(kFurnaceSpec, 1.0, true);
+    auto m = make_finish_model(table_brdf(t, Interp::Linear));
+    m->reflection_samples = 64;
+    const Vec3 n = normalize(Vec3(0.2, 0.3, 1.0));
+    for (double th : {0.0, 45.0, 75.0}) {
+        const Vec3 eye = Frame::from_normal(n).to_world(spherical_direction(deg(th), 0.0));
+        Rgb sum;
+        for (int p = 0; p < 400; ++p) {
+            const std::uint64_t seed = finish_sample_seed(Vec3(p, 0.5, 1), Vec3(0, 0, -1));
+            for (int k = 0; k < 64; ++k) {
+                Vec3 dir;
+                Rgb w;
+                if (finish_reflection_sample(*m, n, eye, Rgb(1.0), seed, k, &dir, &w)) sum += w;
+            }
+        }
+        const Rgb est = sum / 400.0, want = t->directional_albedo(deg(th));
+        EXPECT_NEAR(est.g, want.g, 3e-3 * want.g) << th;
+    }
+}
+
+// ---------------------------------------------------------------- half/difference tables
+
+namespace {
+std::shared_ptr<const BrdfTable> make_halfdiff(const std::string& spec, uint32_t nh, uint32_t nd, uint32_t np) {
+    return build_table(tabulate(*make_brdf(spec), TableGeometry::halfdiff(nh, nd, np)), BuildOptions());
+}
+}  // namespace
+
+TEST(TableSampler, HalfDiffTableSampledFromItsOwnValues) {
+    // A narrow lobe (m = 0.05) in the layout made for it: the sampler works on a 1 deg grid of
+    // the table's values; sample() and pdf() agree (chi-square), every sample is valid, and the
+    // estimator of the directional albedo is unbiased against a midpoint rule with a variance
+    // far below the generic mixture's.
+    auto t = make_halfdiff("microfacet d=beckmann m=0.05 f=dielectric eta=1.5 kd=0.2 rho_s=0.8", 128, 64, 16);
+    const double sidak = 1.0 - std::pow(1.0 - 0.01, 1.0 / 2.0);
+    uint64_t seed = 777;
+    for (double th : {20.2, 55.5}) {
+        const Vec3 wo = spherical_direction(deg(th), deg(15.0));
+        Chi2 r = chi2_test([&](double u1, double u2) { return t->sample(wo, u1, u2); },
+                           [&](const Vec3& wi) { return t->pdf(wo, wi); }, 200000, seed++, 5, 18, 72, Quadrature::Gauss);
+        EXPECT_GT(r.p, sidak) << "theta_o=" << th << ": chi2=" << r.chi2 << " dof=" << r.dof;
+        EXPECT_NEAR(r.pdf_mass, 1.0, 2e-3);
+        EXPECT_NEAR(r.valid_fraction, 1.0, 1e-4);
+
+        Rng rng(seed++);
+        const int n = 100000;
+        Rgb sum, sum_generic;
+        double sq = 0, sq_generic = 0;
+        for (int s = 0; s < n; ++s) {
+            const double u1 = rng(), u2 = rng();
+            const Vec3 wi = t->sample(wo, u1, u2);
+            if (wi.z > 0) {
+                const Rgb v = t->f(wo, wi) * (wi.z / t->pdf(wo, wi));
+                sum += v;
+                sq += sqr(v.g);
+            }
+            const Vec3 wg = t->Brdf::sample(wo, u1, u2);  // the generic mixture, for scale
+            if (wg.z > 0) {
+                const Rgb v = t->f(wo, wg) * (wg.z / t->Brdf::pdf(wo, wg));
+                sum_generic += v;
+                sq_generic += sqr(v.g);
+            }
+        }
+        const Rgb want = midpoint_albedo(*t, wo);
+        EXPECT_NEAR((sum / n).g / want.g, 1.0, 5e-3) << "theta_o " << th;
+        EXPECT_NEAR((sum_generic / n).g / want.g, 1.0, 3e-2) << "theta_o " << th;
+        const double var = sq / n - sqr((sum / n).g), var_generic = sq_generic / n - sqr((sum_generic / n).g);
+        EXPECT_LT(var, 0.2 * var_generic) << "theta_o " << th << ": " << var << " vs " << var_generic;
+        std::printf("halfdiff sampler, theta_o %.1f: variance %.3g, generic mixture %.3g\n", th, var, var_generic);
+    }
+    EXPECT_EQ(t->sample(Vec3(0, 0, -1), 0.5, 0.5).z, 0.0);
+}
