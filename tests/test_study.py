@@ -107,7 +107,10 @@ def test_memory_is_the_renderers_own_within_ten_percent_of_gnu_time(fork, tmp_pa
     gnu = int(re.search(r"Maximum resident set size \(kbytes\): (\d+)", p.stderr).group(1)) * 1024
     ours = res.peak_memory_bytes
     assert abs(ours / gnu - 1) < 0.10, (ours, gnu)
-    assert ballast.nbytes > 8 * gnu  # the harness is much bigger than the render it measures
+    # The check above can only fail if the harness is much bigger than the render: a measure that
+    # counted this process would read at least ballast.nbytes > 2 * gnu, i.e. more than 100 % off.
+    # (A table render holds ~34 MB since tables carry their sampling data; 8x was too tight.)
+    assert ballast.nbytes > 2 * gnu
 
 
 def test_dask_scheduler_backend_matches_local(fork, small_study, tmp_path):
