@@ -11,17 +11,16 @@ reflects, per pixel, the glossy part of its directional albedo.
 
 from __future__ import annotations
 
+import functools
 import re
-import subprocess
 
 import numpy as np
 import pytest
 
 from harness.reference import models
 from harness.core import runner
-from harness.core.compare import rel_rmse
+from harness.core.compare import max_rel_error, rel_rmse
 from harness.reference.expect import expected_image, surface_samples
-from harness.core.paths import REPO_ROOT
 from harness.core.scenes import DistantLight, SphereScene
 
 #: One render per model with four lights: headlight, 45 deg, 80 deg and 89.9 deg (grazing).
@@ -30,6 +29,11 @@ LIGHTS = (DistantLight(0.0, 0.0, (0.4, 0.4, 0.4)), DistantLight(45.0, 30.0, (0.3
 #: Goal of the issue: rel-RMSE <= 1e-4 with float output. Measured 2e-8 .. 1.3e-7 (float32
 #: rounding, and the numpy Smith tables of Blinn/Gaussian near grazing).
 CLOSED_FORM_TOL = 1.0e-4
+#: Per pixel (every channel of every sphere pixel): |render - closed form| relative to the
+#: pixel, for pixels above 1e-3 of the image's peak (compare.max_rel_error). A 10 % error
+#: confined to the grazing rim keeps rel-RMSE near 2e-5 but fails this. Measured 1.4e-7 ..
+#: 2.0e-7, and 7.8e-6 for Blinn/Gaussian with Smith G (the numpy Smith tables at grazing).
+CLOSED_FORM_PIXEL = 1.0e-4
 
 CONDUCTOR = "f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8"
 MODEL_SPECS = [
@@ -70,9 +74,26 @@ def test_model_matches_closed_form(fork, spec):
     mask = surface_samples(scene).mask
     assert np.isfinite(img).all() and (img >= 0).all()
     assert want[mask].max() > 0.05  # the scene shows the model
-    err = rel_rmse(img, want, mask)
-    print(f"{spec}: rel-RMSE {err:.2e}")
+    err, worst = rel_rmse(img, want, mask), max_rel_error(img, want, mask)
+    print(f"{spec}: rel-RMSE {err:.2e}, worst pixel {worst:.2e}")
     assert err < CLOSED_FORM_TOL
+    assert worst < CLOSED_FORM_PIXEL
+
+
+def test_per_pixel_bound_catches_a_rim_error(fork):
+    # Negative control: 10 % too bright only where the surface is seen at > 80 deg. The
+    # image-wide rel-RMSE hardly moves; the per-pixel bound must fail.
+    spec = f"microfacet d=beckmann m=0.25 g=smith {CONDUCTOR}"
+    scene = sphere({"brdf_model": {"spec": spec}})
+    img = runner.render(scene, fork, float_exr=True).image
+    s = surface_samples(scene)
+    rim = s.mask & (-s.normal[..., 2] < np.cos(np.radians(80.0)))
+    bad = img.copy()
+    bad[rim] *= 1.1
+    want = expected_image(scene)
+    assert rim.sum() > 20
+    assert rel_rmse(bad, want, s.mask) < CLOSED_FORM_TOL  # the image-wide measure misses it
+    assert max_rel_error(bad, want, s.mask) > 50 * CLOSED_FORM_PIXEL
 
 
 def test_closed_form_check_has_power(fork):
@@ -116,12 +137,15 @@ def furnace(fork, spec, samples, size=48, sky=1.0, extra="", threads=1):
 
 
 def glossy_albedo(spec, thetas):
-    """The glossy part of the directional albedo, from the library's quadrature (brdftool)."""
-    out = subprocess.run([str(REPO_ROOT / "build" / "shading" / "brdftool"), "albedo", *spec.split(), "--glossy",
-                          "--theta", ",".join(f"{t:.6f}" for t in thetas)],
-                         capture_output=True, text=True, check=True).stdout
-    rows = np.array([[float(x) for x in line.split()] for line in out.splitlines() if not line.startswith("#")])
-    return rows[:, 1:]
+    """The glossy part of the directional albedo by numpy quadrature of the reference model
+    (harness.reference.models, no library code; ``brdftool albedo`` would share f with the
+    renderer)."""
+    return models.parse(spec).glossy_albedo(thetas)
+
+
+@functools.lru_cache(maxsize=None)
+def _glossy_albedo_cached(spec):
+    return glossy_albedo(spec, np.linspace(0.0, 90.0, 91))
 
 
 def furnace_expectation(spec, size):
@@ -129,10 +153,22 @@ def furnace_expectation(spec, size):
     s = surface_samples(scene)
     theta = np.degrees(np.arccos(np.clip(-s.normal[s.mask][:, 2], 0.0, 1.0)))
     grid = np.linspace(0.0, 90.0, 91)
-    a = glossy_albedo(spec, grid)
+    a = _glossy_albedo_cached(spec)
     want = np.zeros(s.mask.shape + (3,))
     want[s.mask] = np.stack([np.interp(theta, grid, a[:, c]) for c in range(3)], -1)
     return want, s.mask, theta
+
+
+#: Glossy reflection in a white furnace, 64 rays per pixel, against the numpy quadrature of
+#: the reference model: the mean relative error over the ~1500 pixels with theta_o < 80 deg
+#: (the bias; a weight 1 % off is 1e-2; measured +5e-5 Beckmann, -5.8e-4 GGX, +4.7e-5 Ward,
+#: -9.8e-4 POV's phong lobe), the per-pixel rms there (the noise of 64 stratified rays:
+#: measured 0.55 % Ward, 0.76 % Beckmann, 1.2 % GGX, 3.3 % POV's phong lobe under the default
+#: sampler) and the rms over every pixel (the grazing rim mixes a steep albedo slope into
+#: each pixel).
+GLOSSY_BIAS_TOL = 3.0e-3
+GLOSSY_NOISE_TOL = 0.045
+GLOSSY_NOISE_RIM_TOL = 0.08
 
 
 @pytest.mark.parametrize("spec", [
@@ -149,12 +185,9 @@ def test_glossy_reflection_white_furnace(fork, spec):
     rel = (img[mask] - want[mask]) / want[mask]
     inner = theta < 80.0  # the grazing rim: few pixels, each mixing a 2-degree albedo node span
     print(f"{spec}: mean rel {rel[inner].mean():+.2e}, rms rel {np.sqrt((rel[inner] ** 2).mean()):.2e}")
-    # Unbiased: the mean over ~1500 pixels (64 rays each) within 0.5 % (measured 0.003 ..
-    # 0.13 %); single pixels within the noise of 64 stratified rays (rms measured 0.55 % for
-    # Ward, 0.8 % Beckmann, 1.2 % GGX, 3.3 % for POV's phong lobe under the default sampler).
-    assert abs(rel[inner].mean()) < 5e-3
-    assert np.sqrt((rel[inner] ** 2).mean()) < 0.045
-    assert np.sqrt((rel ** 2).mean()) < 0.08
+    assert abs(rel[inner].mean()) < GLOSSY_BIAS_TOL
+    assert np.sqrt((rel[inner] ** 2).mean()) < GLOSSY_NOISE_TOL
+    assert np.sqrt((rel ** 2).mean()) < GLOSSY_NOISE_RIM_TOL
 
 
 def test_glossy_reflection_converges(fork):

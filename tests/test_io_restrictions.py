@@ -231,3 +231,48 @@ def test_missing_table_says_where_it_looked(fork, site):
                           f"folder ({site / 'proj'}) and the library paths "), msg
     assert f"{repo_root()}/build/brdf_data" in msg and str(site / "elsewhere") in msg
     assert "+L<folder>" in msg
+
+
+# ---------------------------------------------------------------- writes from the scene (#fopen)
+
+FOPEN = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ location -3*z look_at 0 }}
+light_source {{ <-3, 4, -5> rgb 1 }}
+#fopen Log "{path}" write
+#write (Log, "written by the scene\\n")
+#fclose Log
+sphere {{ 0, 1 pigment {{ rgb 1 }} }}
+"""
+
+
+def test_scene_write_outside_the_permitted_paths_is_refused(fork, site):
+    # Debian's conf permits writing only into the temporary folder and the current one; a
+    # scene's #fopen ... write elsewhere is refused at its line and nothing is written.
+    target = site / "elsewhere" / "leak.txt"
+    (site / "proj" / "w.pov").write_text(FOPEN.format(path=target))
+    out = site / "proj" / "w.exr"
+    p = run_fork(fork, site, "w.pov", out)
+    assert p.returncode != 0, p.stderr[-2000:]
+    assert not target.exists() and not out.exists()
+    err = p.stderr
+    assert f"writing to '{target}' is not permitted" in err, err[-2000:]
+    assert f'read+write* = "{site / "elsewhere"}"' in err  # the line that would permit it
+    assert "File 'w.pov' line 5: Possible Parse Error: IO Restrictions prohibit write access" in err  # the #fopen
+    assert "Unknown error code" not in p.stderr
+
+
+@pytest.mark.parametrize("where", ["current folder", "temporary folder"])
+def test_scene_write_inside_the_permitted_paths_is_allowed(fork, site, where):
+    if where == "current folder":
+        target = site / "proj" / "log.txt"
+    else:
+        target = Path(tempfile.gettempdir()) / f"brdf-fopen-{os.getpid()}.txt"
+    (site / "proj" / "w.pov").write_text(FOPEN.format(path=target))
+    out = site / "proj" / "w.exr"
+    try:
+        p = run_fork(fork, site, "w.pov", out)
+        rendered(p, out)
+        assert target.read_text() == "written by the scene\n"
+    finally:
+        target.unlink(missing_ok=True)

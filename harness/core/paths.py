@@ -142,12 +142,14 @@ def _on_path(name: str, env: str) -> Path:
 
 
 def cache_dir(*parts: str) -> Path:
-    """Where the harness keeps tables and measurements it makes: ``build/`` of a checkout,
-    else ``$POVRAY_BRDF_CACHE``, else ``$XDG_CACHE_HOME/povray-brdf`` (``~/.cache/povray-brdf``)."""
-    if in_checkout():
-        base = REPO_ROOT / "build"
-    elif os.environ.get("POVRAY_BRDF_CACHE"):
+    """Where the harness keeps tables and measurements it makes: ``$POVRAY_BRDF_CACHE`` if set,
+    else ``build/`` of a checkout, else ``$XDG_CACHE_HOME/povray-brdf`` (``~/.cache/povray-brdf``).
+    (The cache is keyed by brdftool's command line, not by the binary: ``make mutate`` points
+    it elsewhere while a mutated brdftool runs.)"""
+    if os.environ.get("POVRAY_BRDF_CACHE"):
         base = Path(os.environ["POVRAY_BRDF_CACHE"])
+    elif in_checkout():
+        base = REPO_ROOT / "build"
     else:
         base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "povray-brdf"
     return base.joinpath(*parts)

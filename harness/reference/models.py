@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, Callable, Mapping, Optional
+from typing import Any, Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -269,6 +269,24 @@ class Model:
         val = self.f(np.broadcast_to(wo, wi.shape), wi)
         w = (np.cos(T) * np.sin(T)).reshape(-1) * (math.pi / 2 / n) * (math.pi / n)
         return (val * w[:, None]).sum(0)
+
+    def glossy_albedo(self, theta_o_deg: Sequence[float], n: int = 200) -> Array:
+        """The glossy part of the directional albedo, ∫ max(0, f - base/π) cos dω_i, at each
+        theta_o (phi_o = 0): what ``samples`` reflects in a white furnace (the Lambertian base
+        goes to radiosity). Midpoint rule in (θ_i, φ_i) with n x 2n cells, as :meth:`albedo`;
+        (len(theta_o_deg), 3)."""
+        base = np.asarray(self.params.get("base", 0.0), dtype=np.float64) * np.ones(3) / math.pi
+        ti = (np.arange(n) + 0.5) * (math.pi / 2) / n
+        ph = (np.arange(2 * n) + 0.5) * math.pi / n
+        T, P = np.meshgrid(ti, ph, indexing="ij")
+        wi = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+        w = (np.cos(T) * np.sin(T)).reshape(-1) * (math.pi / 2 / n) * (math.pi / n)
+        out = []
+        for t in np.radians(np.asarray(theta_o_deg, dtype=np.float64)):
+            wo = np.broadcast_to(np.array([math.sin(t), 0.0, math.cos(t)]), wi.shape)
+            val = np.maximum(np.asarray(self.f(wo, wi), dtype=np.float64) - base, 0.0)
+            out.append((val * w[:, None]).sum(0))
+        return np.array(out)
 
 
 def _lambert(kv: dict[str, str]) -> Model:
