@@ -66,6 +66,7 @@ class Mutation:
     replace: str
     what: str
     pytest: list[str] = field(default_factory=list)
+    gtest: str = ""  # unit tests to run first (a --gtest_filter), the rest after
 
     @property
     def python(self) -> bool:
@@ -139,7 +140,7 @@ def configure() -> None:
     if (BLD / "build.ninja").is_file():
         return
     args = ["cmake", "-S", str(SRC), "-B", str(BLD), "-G", "Ninja", "-DCMAKE_BUILD_TYPE=Release"]
-    if shutil.which("ccache"):
+    if shutil.which("ccache") and "ccache" not in os.environ.get("CXX", ""):
         args.append("-DCMAKE_CXX_COMPILER_LAUNCHER=ccache")
     rc, out = run(args, LOGS / "configure.log", env=build_env())
     if rc:
@@ -207,16 +208,21 @@ def make_pytree() -> None:
 
 # ---------------------------------------------------------------- test runs
 
-def unit_tests(tag: str) -> tuple[str | None, str]:
-    """Run the unit tests, stopping at the first failure; return (failed test or None, log)."""
-    rc, out = run([str(BLD / "shading_tests"), "--gtest_fail_fast", "--gtest_brief=1"], LOGS / f"{tag}.unit.log",
-                  timeout=UNIT_TIMEOUT)
-    if rc == 0:
-        return None, out
-    if rc == 124:
-        return "shading_tests (timed out)", out
-    failed = re.findall(r"^\[  FAILED  \] (\S+)", out, re.M)
-    return (f"ctest {failed[0]}" if failed else f"shading_tests (exit {rc})"), out
+def unit_tests(tag: str, first: str = "") -> tuple[str | None, str]:
+    """Run the unit tests (those matching ``first`` before the rest), stopping at the first
+    failure; return (failed test or None, log)."""
+    filters = [first, "-" + first] if first else ["*"]
+    out_all = ""
+    for k, flt in enumerate(filters):
+        rc, out = run([str(BLD / "shading_tests"), "--gtest_fail_fast", "--gtest_brief=1", f"--gtest_filter={flt}"],
+                      LOGS / f"{tag}.unit{k}.log", timeout=UNIT_TIMEOUT)
+        out_all += out
+        if rc == 124:
+            return "shading_tests (timed out)", out_all
+        if rc != 0:
+            failed = re.findall(r"^\[  FAILED  \] (\S+)", out, re.M)
+            return (f"ctest {failed[0]}" if failed else f"shading_tests (exit {rc})"), out_all
+    return None, out_all
 
 
 def pytest_env(python_mode: bool) -> dict:
@@ -343,7 +349,7 @@ def main() -> int:
                 if not ok:
                     status, by = "error", f"does not compile (see {LOGS}/{tag}.build.log)"
                 else:
-                    failed, _ = unit_tests(tag)
+                    failed, _ = unit_tests(tag, m.gtest)
                     if failed:
                         status, by = "caught", failed
                     elif m.pytest:

@@ -19,6 +19,7 @@ from harness.core.runner import RenderJob, render_many
 from harness.core.scenes import DistantLight, SphereScene
 from harness.reference import expect
 from harness.reports import gonio, regress
+from tests.test_gonio_roundtrip import ROUND_TRIP_TOL, check  # the full grid's own checks
 
 #: The golden scenes of scenes/regress that only the slow suite rendered: the anisotropic
 #: 4-D table, the dipole (preset and explicit coefficients) and glossy reflection. Each
@@ -39,12 +40,11 @@ def test_golden_subset(fork, tmp_path):
 
 
 def test_gonio_off_grid_subset(fork):
-    from tests.test_gonio_roundtrip import check  # the full grid's own checks
-
     pts = gonio.measure(GONIO_SUBSET)
     assert len(pts) == len(GONIO_SUBSET.geometries()) >= 16
     assert any(not p.on_node for p in pts)
     check(pts)
+    assert max(p.rel_error for p in pts) < ROUND_TRIP_TOL
 
 
 def test_stock_term_sweep_subset(renderer):

@@ -25,6 +25,12 @@ def edge_render(fork, extra="", half=8.0, width=128, threads=1):
     return r
 
 
+#: Issue 15's shadow-edge scene at default settings against the closed form: the worst pixel
+#: (relative) and the rms over the image. Stock subsurface at its defaults: 13 % worst.
+EDGE_MAX_TOL = 0.03
+EDGE_RMS_TOL = 0.005
+
+
 def test_shadow_edge_at_default_settings_within_three_percent(fork):
     # Measured: 0.98 % max, 0.16 % rms (0.36 % max at 5 edge levels). Without refinement
     # (refine_levels 0: one spacing everywhere, 1 mm here, as before issue 15) the pixels next
@@ -32,8 +38,8 @@ def test_shadow_edge_at_default_settings_within_three_percent(fork):
     r = edge_render(fork)
     mx, rms, err = dipole_bench.edge_errors(r.image, half=8.0)
     print(f"default: max {mx:.2%}, rms {rms:.2%}")
-    assert mx < 0.03
-    assert rms < 0.005
+    assert mx < EDGE_MAX_TOL
+    assert rms < EDGE_RMS_TOL
     assert "Dipole refinement:" in r.stderr
     flat = edge_render(fork, "refine_levels 0")
     mx0, _, _ = dipole_bench.edge_errors(flat.image, half=8.0)
@@ -48,8 +54,8 @@ def test_shadow_edge_full_scene_at_default_settings(fork):
     r = edge_render(fork, half=dipole_bench.EDGE_HALF, width=dipole_bench.EDGE_WIDTH)
     mx, rms, _ = dipole_bench.edge_errors(r.image)
     print(f"max {mx:.2%}, rms {rms:.2%}, trace {r.trace_seconds} s")
-    assert mx < 0.03
-    assert rms < 0.005
+    assert mx < EDGE_MAX_TOL
+    assert rms < EDGE_RMS_TOL
 
 
 SEVERAL = """#version 3.7;

@@ -33,12 +33,21 @@ def spec_value(spec: str, key: str) -> list[float]:
 
 # ---------------------------------------------------------------- brdftool fit / recommend
 
+#: brdftool fit on a simulated measurement (5 deg, 2 % noise, 1 % cells missing) of GGX m 0.15
+#: on eta 1.5: the recovered roughness (absolute) and index (absolute).
+FIT_M_TOL = 0.003
+FIT_ETA_TOL = 0.01  # measured 1.6e-3 (m: 7.1e-4)
+#: The scattering fit on noisy (3 %) dipole profiles: sigma_a and sigma_s' relative.
+SCATTER_FIT_TOL = 0.005  # measured 1.1e-3 at most (seeded noise)
+
+
 def test_fit_recovers_a_measured_like_table():
     path = tables.measured_like(PLASTIC, step=5.0, noise=0.02, missing=0.01, seed=4)
     out = tool("fit", path, "--model", "microfacet d=tr g=smith f=dielectric").stdout
     spec = re.search(r"spec: (.*)", out).group(1)
-    assert abs(spec_value(spec, "m")[0] - 0.15) < 0.003
-    assert abs(spec_value(spec, "eta")[0] - 1.5) < 0.05
+    print(f"fitted: {spec}")
+    assert abs(spec_value(spec, "m")[0] - 0.15) < FIT_M_TOL
+    assert abs(spec_value(spec, "eta")[0] - 1.5) < FIT_ETA_TOL
     assert np.allclose(spec_value(spec, "kd"), [0.5, 0.06, 0.04], atol=0.01)
     err = float(re.search(r"error: ([0-9.]+)", out).group(1))
     assert err < 0.03  # the 2 % noise itself
@@ -167,8 +176,9 @@ def test_sphere_round_trip_5deg(fork):
 @pytest.mark.parametrize("sa,ss", [(0.02, 1.0), (0.1, 2.0)])
 def test_scatter_fit_recovers_dipole_profiles(sa, ss):
     fit, _ = scatter_fit.demo_dipole(sa, ss, eta=1.3, noise=0.03, seed=2, bootstrap=20)
-    assert abs(fit.sigma_a - sa) < 4 * fit.sigma_a_err and abs(fit.sigma_a / sa - 1) < 0.02
-    assert abs(fit.sigma_s_prime - ss) < 4 * fit.sigma_s_prime_err and abs(fit.sigma_s_prime / ss - 1) < 0.02
+    print(f"sigma_a {fit.sigma_a / sa - 1:+.2e}, sigma_s' {fit.sigma_s_prime / ss - 1:+.2e}")
+    assert abs(fit.sigma_a - sa) < 4 * fit.sigma_a_err and abs(fit.sigma_a / sa - 1) < SCATTER_FIT_TOL
+    assert abs(fit.sigma_s_prime - ss) < 4 * fit.sigma_s_prime_err and abs(fit.sigma_s_prime / ss - 1) < SCATTER_FIT_TOL
     sd = fit.bootstrap.std(axis=0, ddof=1)  # the bootstrap agrees with the covariance
     assert 0.5 < sd[0] / fit.sigma_a_err < 2 and 0.5 < sd[1] / fit.sigma_s_prime_err < 2
     assert 0.5 < fit.chi2 / fit.dof < 1.5
