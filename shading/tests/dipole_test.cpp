@@ -124,18 +124,29 @@ TEST(Dipole, ReducedCoefficientsFollowTheDefinitions) {
         EXPECT_NEAR(ch.sigma_tr, std::sqrt(3.0 * m.sigma_a[c] * (ssp + m.sigma_a[c])), 1e-14);
         EXPECT_NEAR(ch.zr, 1.0 / (ssp + m.sigma_a[c]), 1e-14);
         EXPECT_NEAR(ch.A, (1.0 + 0.444763) / (1.0 - 0.444763), 1e-5);
-        EXPECT_NEAR(ch.zv, ch.zr * (1.0 + 4.0 * ch.A / 3.0), 1e-14);
+        // zv = zr (1 + 4A/3) with zr and A from the inputs and Jensen's Fdr fit at eta 1.3
+        // (0.444763, written out), not from the library's fields.
+        const double A = (1.0 + 0.444763) / (1.0 - 0.444763);
+        EXPECT_NEAR(ch.zv, (1.0 + 4.0 * A / 3.0) / (ssp + m.sigma_a[c]), 1e-5 * ch.zv);
     }
 }
 
 TEST(Dipole, ProfileMatchesEquation5WrittenOut) {
     DipoleChannel c = DipoleChannel::make(1.0, 0.01, 1.3);
+    // Every quantity from the inputs (sigma_s' = 1, sigma_a = 0.01 per mm, eta = 1.3) by
+    // Jensen 2001's definitions, none from the library (issue 19): sigma_t' = 1.01,
+    // alpha' = 1/1.01, sigma_tr = sqrt(3 sigma_a sigma_t'), zr = 1/sigma_t', Fdr by the
+    // Egan-Hilgeman fit, A = (1 + Fdr)/(1 - Fdr), zv = zr (1 + 4A/3).
+    const double eta = 1.3, st = 1.01, ap = 1.0 / st, str = std::sqrt(3.0 * 0.01 * st), zr = 1.0 / st;
+    const double fdr = -1.440 / (eta * eta) + 0.710 / eta + 0.668 + 0.0636 * eta;
+    const double A = (1.0 + fdr) / (1.0 - fdr), zv = zr * (1.0 + 4.0 * A / 3.0);
+    EXPECT_NEAR(fdr, 0.444763, 1e-6);  // the value the other tests write as a literal
     for (double r : {0.0, 0.1, 1.0, 5.0}) {
-        double dr = std::sqrt(r * r + c.zr * c.zr), dv = std::sqrt(r * r + c.zv * c.zv);
-        double want = c.alpha_prime / (4.0 * kPi) *
-                      (c.zr * (c.sigma_tr * dr + 1.0) * std::exp(-c.sigma_tr * dr) / (dr * dr * dr) +
-                       c.zv * (c.sigma_tr * dv + 1.0) * std::exp(-c.sigma_tr * dv) / (dv * dv * dv));
-        EXPECT_NEAR(c.rd(r), want, 1e-14 * want) << r;
+        double dr = std::sqrt(r * r + zr * zr), dv = std::sqrt(r * r + zv * zv);
+        double want = ap / (4.0 * kPi) *
+                      (zr * (str * dr + 1.0) * std::exp(-str * dr) / (dr * dr * dr) +
+                       zv * (str * dv + 1.0) * std::exp(-str * dv) / (dv * dv * dv));
+        EXPECT_NEAR(c.rd(r), want, 1e-12 * want) << r;
     }
 }
 
