@@ -36,6 +36,7 @@ def test_lambert_table_renders_like_diffuse(fork, interpolate):
     img = render(scene, fork, files={"lam.brdf": path}).image
     want = expected_image(sphere({"diffuse": 1.0}, pigment=(0.2, 0.5, 0.8)))
     mask = surface_samples(scene).mask
+    print(f"interpolate {interpolate}: rel-RMSE {rel_rmse(img, want, mask):.2e}, max abs {np.abs(img - want)[mask].max():.2e}")
     assert rel_rmse(img, want, mask) < FLOAT_TOL
     assert np.abs(img - want)[mask].max() < 1e-5
 

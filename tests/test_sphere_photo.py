@@ -71,6 +71,7 @@ def test_noisy_photographs_recover_the_table_within_the_stated_error(example):
     assert p.returncode == 0, p.stderr
     assert re.search(r"coverage: 98\.\d % of the nodes", p.stdout), p.stdout
     e = errors(p.stdout)
+    print(e)
     # docs/fitting.md: 0.030 (theta <= 80) and 0.106 (theta < 90) measured; stated bounds:
     assert e["covered_80"] < PHOTO_ERROR_80 and e["filled_80"] < PHOTO_ERROR_80, e
     assert e["covered"] < PHOTO_ERROR_90 and e["filled"] < PHOTO_ERROR_90, e
