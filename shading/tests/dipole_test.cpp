@@ -417,6 +417,28 @@ TEST(SingleScatter, OutsideIntegralEqualsFluxComputedInside) {
         }
 }
 
+TEST(SingleScatter, ForwardPeakedPhaseFollowsTheRefractedRays) {
+    // g = 0.8, albedo 0.9, eta 1.3, light at theta 1 rad, azimuth 0: values of the numpy
+    // reference (harness/reference/dipole_ref.py single_scatter_brdf, Hanrahan & Krueger 1993
+    // as Jensen 2001 eq. 2 writes it), an independent program. Every case but the symmetric
+    // ones (normal incidence, isotropic phase) depends on the sign of the in-plane part of the
+    // phase angle: viewed from the far side of the light the forward lobe shows, from the
+    // light's own side it does not (issue 19: a sign error there passed every test).
+    Medium m;
+    m.sigma_s = Rgb(0.9);
+    m.sigma_a = Rgb(0.1);
+    m.g = Rgb(0.8);
+    m.eta = 1.3;
+    Dipole d(m);
+    const Vec3 wi = spherical_direction(1.0, 0.0);
+    const struct { Vec3 wo; double want; } cases[] = {
+        {spherical_direction(0.9, kPi), 0.003226356307070745},   // far side
+        {spherical_direction(0.9, 0.0), 0.0015540624405809395},  // the light's side
+        {spherical_direction(0.6, 1.3), 0.0017799966005335544},
+    };
+    for (const auto& c : cases) EXPECT_NEAR(d.single_scatter_brdf(c.wo, wi).r, c.want, 1e-9 * c.want);
+}
+
 TEST(SingleScatter, EnergyBoundedForEveryPreset) {
     for (const MediumPreset& p : media_presets()) {
         Dipole d(p.medium());
