@@ -254,7 +254,7 @@ def py_tests(targets: list[str], tag: str, python_mode: bool) -> tuple[str | Non
         return None, out
     if rc == 124:
         return "pytest (timed out)", out
-    failed = re.findall(r"^(?:FAILED|ERROR) (\S+)", out, re.M)
+    failed = re.findall(r"^(?:FAILED|ERROR) (.+?)(?: - .*)?$", out, re.M)
     if rc == 5:
         return None, out + "\n(no tests collected)"
     return (failed[0] if failed else f"pytest (exit {rc})"), out
