@@ -58,6 +58,10 @@ UNIT_TIMEOUT = 600
 PYTEST_TIMEOUT = 1200
 
 
+class SetupError(RuntimeError):
+    """The test run itself went wrong (not a failing test): neither caught nor missed."""
+
+
 @dataclass
 class Mutation:
     id: str
@@ -76,6 +80,13 @@ class Mutation:
 def load() -> list[Mutation]:
     data = tomllib.loads(MUTATIONS.read_text())
     out = [Mutation(**m) for m in data["mutation"]]
+    for m in out:
+        for t in m.pytest:
+            path = TOP / t.split("::")[0]
+            if not path.is_file():
+                sys.exit(f"mutate: {MUTATIONS}: mutation {m.id} names a missing test file {t}")
+        if not (TOP / m.file).is_file():
+            sys.exit(f"mutate: {MUTATIONS}: mutation {m.id} names a missing file {m.file}")
     ids = [m.id for m in out]
     dup = {i for i in ids if ids.count(i) > 1}
     if dup:
@@ -254,10 +265,10 @@ def py_tests(targets: list[str], tag: str, python_mode: bool) -> tuple[str | Non
         return None, out
     if rc == 124:
         return "pytest (timed out)", out
+    if rc != 1:  # 2 interrupted, 3 internal error, 4 usage, 5 nothing collected: not a catch
+        raise SetupError(f"pytest exited with {rc} (not a test failure); see {LOGS}/{tag}.pytest.log")
     failed = re.findall(r"^(?:FAILED|ERROR) (.+?)(?: - .*)?$", out, re.M)
-    if rc == 5:
-        return None, out + "\n(no tests collected)"
-    return (failed[0] if failed else f"pytest (exit {rc})"), out
+    return (failed[0] if failed else "pytest (a test failed)"), out
 
 
 # ---------------------------------------------------------------- main
@@ -314,7 +325,7 @@ def main() -> int:
         if cpp:
             failed, _ = unit_tests("baseline")
             if failed:
-                sys.exit(f"mutate: baseline: {failed} fails without any mutation (see {LOGS}/baseline.unit.log)")
+                sys.exit(f"mutate: baseline: {failed} fails without any mutation (see {LOGS}/baseline.unit0.log)")
             ok, out = link_fork("baseline")
             if not ok:
                 sys.exit(f"mutate: relinking the fork failed:\n{out[-3000:]}")
@@ -363,6 +374,8 @@ def main() -> int:
                             failed, _ = py_tests(m.pytest, tag, False)
                             if failed:
                                 status, by = "caught", failed
+        except SetupError as e:
+            status, by = "error", str(e)
         finally:
             restore(path, original)
         dt = time.time() - t0
