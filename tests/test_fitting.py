@@ -39,6 +39,9 @@ FIT_M_TOL = 0.003
 FIT_ETA_TOL = 0.01  # measured 1.6e-3 (m: 7.1e-4)
 #: The scattering fit on noisy (3 %) dipole profiles: sigma_a and sigma_s' relative.
 SCATTER_FIT_TOL = 0.005  # measured 1.1e-3 at most (seeded noise)
+#: The scattering fit's 95 % interval on a Monte Carlo profile: at most this wide (relative
+#: half-width; measured 0.21 for sigma_a, 0.19 for sigma_s').
+SCATTER_INTERVAL_MAX = 0.3
 
 
 def test_fit_recovers_a_measured_like_table():
@@ -197,3 +200,23 @@ def test_scatter_fit_monte_carlo_profile():
     fit, t = scatter_fit.demo_mc(0.02, 1.0, eta=1.3, n_photons=20000, seed=1)
     assert abs(fit.sigma_a / 0.02 - 1) < 0.25
     assert abs(fit.sigma_s_prime / 1.0 - 1) < 0.25
+
+
+def test_scatter_fit_interval_covers_the_transport_truth():
+    # The documented claim (docs/fitting.md): the 95 % interval (statistics plus the dipole's
+    # calibrated model error) of a fit to a Monte Carlo transport profile covers the true
+    # coefficients. Measured (seeded): the truth at 0.75 of the half-width for both, which is
+    # 21 % of sigma_a and 19 % of sigma_s'. The point estimates alone are 15 % off: the dipole's
+    # own error, which is why the interval and not the estimate carries the claim.
+    from harness.reference.mc_subsurface import simulate
+    sa, ss, eta = 0.02, 1.0, 1.3
+    edges = np.concatenate([[0.0], np.geomspace(0.05, 40.0, 41)]) / (sa + ss)
+    mc = simulate(ss, sa, g=0.0, eta=eta, n_photons=20000, seed=1, r_edges=edges)
+    prof = scatter_fit.Profile("mc", 0.5 * (edges[:-1] + edges[1:]), mc.rd_r, mc.rd_r_err, edges, True, "mm")
+    est = scatter_fit.estimate(prof, eta)
+    assert est.calibrated
+    for which, truth in (("sigma_a", sa), ("sigma_s_prime", ss)):
+        v, half, _, _ = est.interval(which)
+        print(f"{which}: {v:.4g} +- {half:.3g} (truth {truth}: {abs(v - truth) / half:.2f} half-widths)")
+        assert abs(v - truth) < half
+        assert half < SCATTER_INTERVAL_MAX * truth
