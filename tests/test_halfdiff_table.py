@@ -26,6 +26,9 @@ from harness.tools import merl_synth
 
 LIGHTS = (DistantLight(0.0), DistantLight(45.0, 30.0), DistantLight(80.0, 200.0))
 GOAL = 3e-3            # rel-RMSE against the model
+#: The worst pixel's error relative to the image's peak (issue 19: a per-pixel bound beside the
+#: image-wide one). Measured 8.3e-4 for m = 0.02 gold.
+PIXEL_GOAL = 3e-3
 MAX_BYTES = 18_000_000  # per RGB table
 DIELECTRIC = "f=dielectric eta=1.5 kd=0.3 rho_s=0.7"
 CONDUCTOR = "f=conductor n=0.143,0.374,1.442 k=3.983,2.385,1.603"  # gold
@@ -39,12 +42,15 @@ def sphere(finish, size):
     return SphereScene(lights=LIGHTS, finish=finish, width=size, height=size)
 
 
-def table_error(fork, path, model_spec, size):
-    """rel-RMSE of the table's sphere against the numpy model's."""
+def table_error(fork, path, model_spec, size, worst=False):
+    """rel-RMSE of the table's sphere against the numpy model's (and, with ``worst``, the worst
+    pixel's error relative to the peak)."""
     want = expected_image(sphere({"brdf_model": {"spec": model_spec}}, size))
     img = runner.render(sphere({"brdf_table": {"file": "t.brdf"}}, size), fork, float_exr=True,
                         files={"t.brdf": path}).image
-    return rel_rmse(img, want, surface_samples(sphere({}, size)).mask)
+    mask = surface_samples(sphere({}, size)).mask
+    err = rel_rmse(img, want, mask)
+    return (err, float(np.abs(img - want)[mask].max() / want[mask].max())) if worst else err
 
 
 def test_narrowest_lobe_meets_the_goal_where_the_1deg_table_does_not(fork):
@@ -52,11 +58,12 @@ def test_narrowest_lobe_meets_the_goal_where_the_1deg_table_does_not(fork):
     s = spec(0.02, CONDUCTOR)
     hd = tables.tabulated_halfdiff(s)
     iso = tables.tabulated(s, step=1.0, fold=True)
-    e_hd, e_iso = table_error(fork, hd, s, 96), table_error(fork, iso, s, 96)
-    print(f"m=0.02 gold: halfdiff {e_hd:.2e} ({hd.stat().st_size / 1e6:.1f} MB), "
+    (e_hd, px_hd), e_iso = table_error(fork, hd, s, 96, worst=True), table_error(fork, iso, s, 96)
+    print(f"m=0.02 gold: halfdiff {e_hd:.2e}, worst pixel {px_hd:.2e} of the peak ({hd.stat().st_size / 1e6:.1f} MB), "
           f"1 deg {e_iso:.2e} ({iso.stat().st_size / 1e6:.1f} MB)")
     assert hd.stat().st_size <= MAX_BYTES
     assert e_hd < GOAL
+    assert px_hd < PIXEL_GOAL
     assert e_iso > 10 * GOAL  # the reason for the layout: 5 % at 1 deg
 
 
