@@ -58,7 +58,10 @@ def test_table_matches_the_model_it_tabulates(fork):
     mask = surface_samples(sphere({})).mask
     err = rel_rmse(table, direct, mask)
     print(f"1 deg trilinear rel-RMSE {err:.2e}")
-    assert err < 3e-3
+    # Measured 1.3e-5 (trilinear interpolation error of this lobe at 1 deg); the bound was 3e-3,
+    # which a nearest-node or 5 deg table would pass. The independent version (numpy model,
+    # per-pixel bound, negative controls) is tests/test_strict_tables.py.
+    assert err < 5e-5
     assert direct[mask].max() > 0.1
 
 
