@@ -20,7 +20,7 @@ import numpy as np
 __all__ = [
     "fresnel_dielectric", "refracted_cos", "fdr_fit", "fdr_exact", "henyey_greenstein",
     "rd_total_closed", "Dipole", "single_scatter_brdf", "single_scatter_albedo_normal",
-    "chandrasekhar_h", "plane_albedo_isotropic",
+    "chandrasekhar_h", "chandrasekhar_h_iterated", "plane_albedo_isotropic", "plane_radiance_isotropic",
 ]
 
 
@@ -215,12 +215,42 @@ def chandrasekhar_h(mu, albedo: float, n_theta: int = 4000):
     return np.exp(-(mu / math.pi) * np.sum(w * lg / den, axis=1))
 
 
+def chandrasekhar_h_iterated(mu, albedo: float, n: int = 128, iterations: int = 5000) -> np.ndarray:
+    """The same H-function by another method: fixed-point iteration of Chandrasekhar's integral
+    equation 1/H(mu) = sqrt(1 - albedo) + (albedo/2) int_0^1 mu' H(mu') / (mu + mu') dmu'
+    (the form that converges for albedo -> 1), Gauss-Legendre in mu', then the equation itself
+    evaluated at the requested mu. Used to check :func:`chandrasekhar_h`."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x = 0.5 * (x + 1.0)
+    w = 0.5 * w
+    h = np.ones(n)
+    s = math.sqrt(max(0.0, 1.0 - albedo))
+    for _ in range(iterations):
+        new = 1.0 / (s + 0.5 * albedo * np.sum(w * x * h / (x[:, None] + x[None, :]), axis=1))
+        if np.max(np.abs(new - h)) < 1e-15:
+            h = new
+            break
+        h = new
+    mu = np.atleast_1d(np.asarray(mu, dtype=float))
+    return 1.0 / (s + 0.5 * albedo * np.sum(w * x * h / (mu[:, None] + x[None, :]), axis=1))
+
+
 def plane_albedo_isotropic(albedo: float, mu0: float = 1.0) -> float:
     """Exact total reflectance of a semi-infinite isotropically scattering medium with no index
     mismatch, collimated incidence at cosine mu0: 1 - H(mu0) sqrt(1 - albedo)."""
     if albedo >= 1.0:
         return 1.0
     return float(1.0 - chandrasekhar_h(mu0, albedo)[0] * math.sqrt(1.0 - albedo))
+
+
+def plane_radiance_isotropic(albedo: float, mu: float, mu0: float = 1.0) -> float:
+    """Exact radiance reflected by a semi-infinite isotropically scattering medium with no index
+    mismatch under a collimated beam at cosine mu0, seen at cosine mu (any azimuth), as
+    pi L / E with E the irradiance of the surface (Chandrasekhar 1950):
+    pi L / E = albedo H(mu) H(mu0) / (4 (mu + mu0)); normal incidence and view: albedo H(1)^2 / 8.
+    Single scattering alone is albedo / (4 (mu + mu0))."""
+    h = chandrasekhar_h(np.array([mu, mu0]), albedo)
+    return float(albedo * h[0] * h[1] / (4.0 * (mu + mu0)))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -45,11 +45,21 @@ void subsurface_note_thin() { ++g_thin; }
 
 // ---------------------------------------------------------------- RdProfile
 
-RdProfile::RdProfile(const Dipole& dipole, double r_max, int nodes) : r_max_(r_max) {
-    if (!(r_max > 0) || !std::isfinite(r_max) || nodes < 2) throw std::invalid_argument("RdProfile: bad range");
-    r_s_ = r_max;
+namespace {
+double smallest_depth(const Dipole& dipole, double r_max) {
+    double r_s = r_max;
     for (int c = 0; c < 3; ++c)
-        if (!dipole.channel(c).empty) r_s_ = std::min(r_s_, dipole.channel(c).zr);
+        if (!dipole.channel(c).empty) r_s = std::min(r_s, dipole.channel(c).zr);
+    return r_s;
+}
+}  // namespace
+
+RdProfile::RdProfile(const Dipole& dipole, double r_max, int nodes)
+    : RdProfile([&dipole](double r) { return dipole.rd(r); }, smallest_depth(dipole, r_max), r_max, nodes) {}
+
+RdProfile::RdProfile(const std::function<Rgb(double)>& rd, double r_s, double r_max, int nodes) : r_max_(r_max) {
+    if (!(r_max > 0) || !std::isfinite(r_max) || nodes < 2) throw std::invalid_argument("RdProfile: bad range");
+    r_s_ = r_s > 0 && r_s < r_max ? r_s : r_max;
     const double L = std::log1p(r_max / r_s_);
     inv_step_ = nodes / L;
     f_.resize(nodes + 1);
@@ -60,7 +70,7 @@ RdProfile::RdProfile(const Dipole& dipole, double r_max, int nodes) : r_max_(r_m
         // Derivatives by central differences, step 1e-3 of the local scale r + r_s; below
         // r = e the even extension of Rd (a function of |r|) supplies the point at r - e.
         const double e = 1e-3 * (r + r_s_);
-        const Rgb f0 = dipole.rd(r), fp = dipole.rd(r + e), fm = dipole.rd(std::fabs(r - e));
+        const Rgb f0 = rd(r), fp = rd(r + e), fm = rd(std::fabs(r - e));
         f_[i] = f0;
         for (int k = 0; k < 3; ++k) {
             d1_[i][k] = (fp[k] - fm[k]) / (2 * e);
@@ -252,30 +262,35 @@ struct Subsurface::Entry {
 
 Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings, FdrModel fdr)
     : dipole_(medium, fdr), settings_(settings) {
+    model_ = std::make_shared<DipoleRadialProfile>(dipole_);
+    init();
+}
+
+Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings, std::shared_ptr<const RadialProfile> model)
+    : dipole_(medium), settings_(settings), model_(std::move(model)) {
+    if (!model_) model_ = std::make_shared<DipoleRadialProfile>(dipole_);
+    init();
+}
+
+void Subsurface::init() {
     if (!(settings_.max_angle > 0 && settings_.max_angle <= 2.0))
         throw std::invalid_argument("dipole: error threshold must be in (0, 2], got " + std::to_string(settings_.max_angle));
     if (!(settings_.spacing >= 0) || !std::isfinite(settings_.spacing))
         throw std::invalid_argument("dipole: spacing must be >= 0 (0: automatic)");
-    // The radius holding all but 1e-6 of each channel's reflectance; without absorption Rd's
-    // tail is a power law and that radius grows without bound: a million transport lengths
-    // caps it there.
-    for (int c = 0; c < 3; ++c)
-        if (!dipole_.channel(c).empty)
-            cutoff_ = std::max(cutoff_, std::min(dipole_.channel(c).radius_containing(1.0 - 1e-6), 1e6 * dipole_.channel(c).zv));
-    profile_ = std::make_unique<RdProfile>(dipole_, cutoff_ > 0 ? cutoff_ : 1.0);
-    transmit_handle_ = finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(medium.eta)));
+    cutoff_ = model_->cutoff();
+    const RadialProfile* m = model_.get();
+    if (auto d = dynamic_cast<const DipoleRadialProfile*>(m)) {
+        profile_ = std::make_unique<RdProfile>(d->dipole(), cutoff_ > 0 ? cutoff_ : 1.0);
+        transmit_handle_ = finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(dipole_.medium().eta)));
+    } else {
+        profile_ = std::make_unique<RdProfile>([m](double r) { return m->rd(r); }, m->mean_free_path(), cutoff_ > 0 ? cutoff_ : 1.0);
+        transmit_handle_ = finish_model_register(make_finish_model(std::make_shared<ProfileTransmittanceBrdf>(model_)));
+    }
 }
 
 Subsurface::~Subsurface() { finish_model_release(transmit_handle_); }
 
-double Subsurface::mean_free_path() const {
-    double l = 0;
-    for (int c = 0; c < 3; ++c) {
-        const DipoleChannel& ch = dipole_.channel(c);
-        if (!ch.empty) l = l == 0 ? ch.zr : std::min(l, ch.zr);
-    }
-    return l;
-}
+double Subsurface::mean_free_path() const { return model_->mean_free_path(); }
 
 double Subsurface::sample_spacing(double extent) const {
     if (settings_.spacing > 0) return settings_.spacing;
@@ -311,13 +326,13 @@ const PointCloud& Subsurface::cloud(const void* key,
 Rgb Subsurface::near_reflectance(double h) const {
     // (1 - w) = 1 below R0 - h: the closed-form disc integral; over the ramp, Simpson.
     const double r0 = near_radius(h), a = std::max(0.0, r0 - h), b = r0 + h;
-    Rgb sum = dipole_.rd_disc(a);
+    Rgb sum = model_->rd_disc(a);
     const int n = 256;
     const double step = (b - a) / n;
     for (int i = 0; i <= n; ++i) {
         const double r = a + i * step;
         const double wt = (i == 0 || i == n) ? 1.0 : (i % 2 ? 4.0 : 2.0);
-        sum += dipole_.rd(r) * ((1.0 - PointCloud::window(r, r0, h)) * 2.0 * kPi * r * wt * step / 3.0);
+        sum += model_->rd(r) * ((1.0 - PointCloud::window(r, r0, h)) * 2.0 * kPi * r * wt * step / 3.0);
     }
     return sum;
 }
@@ -332,7 +347,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     g_lookups += 1;
     g_visited += visited;
     m += irradiance_here * cloud.near_reflectance();
-    return m * fresnel_transmittance(cos_o, dipole_.medium().eta);
+    return m * model_->exit_factor(cos_o);
 }
 
 // ---------------------------------------------------------------- BRDFs
@@ -342,6 +357,12 @@ Rgb TransmittanceBrdf::f(const Vec3& wo, const Vec3& wi) const {
     return Rgb(fresnel_transmittance(wi.z, eta_) * kInvPi);
 }
 std::string TransmittanceBrdf::describe() const { return "transmittance(eta=" + std::to_string(eta_) + ")"; }
+
+Rgb ProfileTransmittanceBrdf::f(const Vec3& wo, const Vec3& wi) const {
+    if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
+    return model_->entry_factor(wi.z) * kInvPi;
+}
+std::string ProfileTransmittanceBrdf::describe() const { return "transmittance(" + model_->describe() + ")"; }
 
 DipoleSurfaceBrdf::DipoleSurfaceBrdf(std::shared_ptr<const Subsurface> s, BrdfPtr coat)
     : s_(std::move(s)), coat_(std::move(coat)) {

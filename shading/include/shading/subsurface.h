@@ -36,6 +36,7 @@
 
 #include "shading/brdf.h"
 #include "shading/dipole.h"
+#include "shading/radial_profile.h"
 
 namespace shading {
 
@@ -57,6 +58,8 @@ struct SurfacePoint {
 class RdProfile {
 public:
     RdProfile(const Dipole& dipole, double r_max, int nodes = 16384);
+    // Any per-channel profile rd(r) (radial_profile.h), r_s its smallest length scale.
+    RdProfile(const std::function<Rgb(double)>& rd, double r_s, double r_max, int nodes = 16384);
     Rgb rd(double r) const;
     // Rd and its derivatives d/dr, d2/dr2 at r.
     void eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const;
@@ -142,13 +145,18 @@ void subsurface_note_thin();
 // What one `dipole { }` finish holds: the medium, its settings, and the per-object clouds.
 class Subsurface {
 public:
+    // Multiple scattering from the dipole (Jensen 2001) ...
     Subsurface(const Medium& medium, const SubsurfaceSettings& settings, FdrModel fdr = FdrModel::JensenFit);
+    // ... or from another profile of the same medium (ExactProfile); the dipole stays for the
+    // single-scattering BRDF.
+    Subsurface(const Medium& medium, const SubsurfaceSettings& settings, std::shared_ptr<const RadialProfile> model);
     ~Subsurface();
     Subsurface(const Subsurface&) = delete;
     Subsurface& operator=(const Subsurface&) = delete;
 
     const Dipole& dipole() const { return dipole_; }
     const RdProfile& profile() const { return *profile_; }
+    const RadialProfile& model() const { return *model_; }
     const SubsurfaceSettings& settings() const { return settings_; }
 
     // Sample spacing for an object whose bounding box has the given largest extent: the user's,
@@ -174,19 +182,22 @@ public:
     // diffuse reflectance taken from the local irradiance (computed once per cloud).
     Rgb near_reflectance(double h) const;
 
-    // pixel += radiance(...): Ft(eta, cos_o) M(x) (RGB) at x (normal n) on an object whose
+    // pixel += radiance(...): exit_factor(cos_o) M(x) (RGB; the dipole's is Ft(eta, cos_o)) at x (normal n) on an object whose
     // cloud of spacing h is `cloud`, with E_t(x) the transmitted irradiance at x itself;
     // 0 when the viewer is below the surface.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here) const;
 
-    // Handle of a finish model (finish.h registry) whose BRDF is Ft(eta, cos_i) / pi: lit by
-    // the renderer's light loop it yields the transmitted irradiance E_t at a point.
+    // Handle of a finish model (finish.h registry) whose BRDF is entry_factor(cos_i) / pi (the
+    // dipole's: Ft(eta, cos_i) / pi): lit by the renderer's light loop it yields the transmitted
+    // irradiance E_t at a point.
     int transmittance_handle() const { return transmit_handle_; }
 
 private:
+    void init();
     Dipole dipole_;
     SubsurfaceSettings settings_;
+    std::shared_ptr<const RadialProfile> model_;
     double cutoff_ = 0;
     std::unique_ptr<RdProfile> profile_;
     int transmit_handle_ = 0;
@@ -205,6 +216,18 @@ public:
 
 private:
     double eta_;
+};
+
+// RadialProfile::entry_factor(cos_i) / pi as a Brdf (wo ignored above the surface): the
+// transmitted irradiance's light loop of a profile other than the dipole.
+class ProfileTransmittanceBrdf final : public Brdf {
+public:
+    explicit ProfileTransmittanceBrdf(std::shared_ptr<const RadialProfile> model) : model_(std::move(model)) {}
+    Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    std::string describe() const override;
+
+private:
+    std::shared_ptr<const RadialProfile> model_;
 };
 
 // The single-scattering term of a medium as a Brdf (Dipole::single_scatter_brdf), optionally
