@@ -142,9 +142,14 @@ fork: all
 
 # ---------------------------------------------------------------- ready BRDF tables
 BRDFTOOL   := $(SHADING_BUILD)/brdftool
+SSTOOL     := $(SHADING_BUILD)/sstool
 BRDF_DATA  := $(BUILD)/brdf_data
-brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt into build/brdf_data
+# The exact subsurface profiles (shading/DIPOLE.md "Profile tables"): rebuilt only when missing or
+# made by another generator version or settings (sstool build --if-stale), a few minutes once.
+SS_PROFILES := $(BRDF_DATA)/subsurface_profiles.ssp
+brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt and the exact subsurface profiles into build/brdf_data
 	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)
+	$(SSTOOL) build --if-stale --threads $(JOBS) -o $(SS_PROFILES)
 
 # ---------------------------------------------------------------- python harness
 # The harness is a package (pyproject.toml: pinned dependencies, console scripts); the venv

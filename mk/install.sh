@@ -4,10 +4,12 @@
 #
 #   PREFIX/bin/povray-brdf                the fork (never named `povray`: stock stays stock)
 #   PREFIX/bin/brdftool                   tabulate, convert, fit, plot ... BRDF tables
+#   PREFIX/bin/sstool                     build, inspect, evaluate the exact subsurface profile tables
 #   PREFIX/etc/povray-brdf/povray.conf    I/O restrictions for the installed layout
 #   PREFIX/etc/povray-brdf/povray.ini     library paths: the two directories below
 #   PREFIX/share/povray-brdf/include      POV-Ray 3.7.0.10's standard include files and ours
-#   PREFIX/share/povray-brdf/brdf_data    the ready tables of `make brdf-data`
+#   PREFIX/share/povray-brdf/brdf_data    the ready tables of `make brdf-data` (.brdf, and the exact
+#                                         subsurface profiles subsurface_profiles.ssp)
 #   PREFIX/share/povray-brdf/doc          README, docs/, shading/MODELS.md, DIPOLE.md, brdf_data/README.md
 #   PREFIX/share/povray-brdf/install-manifest.txt   every installed file (`make uninstall`)
 #
@@ -44,7 +46,7 @@ for f in "$povdir/vfe/unix/unixoptions.cpp" "$povdir/vfe/libvfe.a" "$povdir/sour
   if [ "$f" -nt "$bin_src" ]; then die "the fork's build is out of date ($f is newer than build/bin/povray-brdf): run make"; fi
 done
 shopt -s nullglob
-tables=("$top"/build/brdf_data/*.brdf)
+tables=("$top"/build/brdf_data/*.brdf "$top"/build/brdf_data/*.ssp)
 [ ${#tables[@]} -gt 0 ] || die "no tables in build/brdf_data: run make brdf-data"
 
 etc=$prefix/etc/povray-brdf
@@ -96,6 +98,7 @@ put() {  # MODE SRC DST: install one file (a rename, so a running povray-brdf is
 }
 put 755 "$tmp/povray-brdf" "$bindir/povray-brdf"
 put 755 "$tool_src" "$bindir/brdftool"
+put 755 "$top/build/shading/sstool" "$bindir/sstool"
 for f in "$povdir"/distribution/include/*; do
   [ -f "$f" ] && put 644 "$f" "$share/include/$(basename "$f")"
 done

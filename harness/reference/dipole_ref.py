@@ -12,6 +12,7 @@ compared through shared numbers (tests on both sides assert the same published v
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -201,12 +202,23 @@ def single_scatter_albedo_normal(albedo: float, g: float, eta: float, n: int = 2
 # ---------------------------------------------------------------------------------------------
 # Exact transport: semi-infinite isotropic medium, index-matched boundary (Chandrasekhar 1950)
 
+@functools.lru_cache(maxsize=8)
+def _gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and weights on [-1, 1], made once (scipy's roots_legendre: numpy's leggauss is O(n^3),
+    seconds for n = 4000)."""
+    from scipy.special import roots_legendre
+    x, w = roots_legendre(n)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
 def chandrasekhar_h(mu, albedo: float, n_theta: int = 4000):
     """Chandrasekhar's H-function for isotropic scattering, by its explicit integral form
     ln H(mu) = -(mu/pi) int_0^{pi/2} ln(1 - albedo theta cot theta) / (cos^2 + mu^2 sin^2) dtheta
     (Gauss-Legendre in theta)."""
     mu = np.atleast_1d(np.asarray(mu, dtype=float))
-    x, w = np.polynomial.legendre.leggauss(n_theta)
+    x, w = _gauss_legendre(n_theta)
     th = 0.25 * math.pi * (x + 1.0)
     w = 0.25 * math.pi * w
     tc = th / np.tan(th)
@@ -225,9 +237,10 @@ def chandrasekhar_h_iterated(mu, albedo: float, n: int = 128, iterations: int = 
     w = 0.5 * w
     h = np.ones(n)
     s = math.sqrt(max(0.0, 1.0 - albedo))
+    kernel = 0.5 * albedo * (w * x)[None, :] / (x[:, None] + x[None, :])
     for _ in range(iterations):
-        new = 1.0 / (s + 0.5 * albedo * np.sum(w * x * h / (x[:, None] + x[None, :]), axis=1))
-        if np.max(np.abs(new - h)) < 1e-15:
+        new = 1.0 / (s + kernel @ h)
+        if np.max(np.abs(new - h)) < 1e-14:
             h = new
             break
         h = new

@@ -57,21 +57,28 @@ ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables>
     if (!range.empty()) throw std::invalid_argument("exact profile: " + range + "; use `profile dipole` for this medium");
     const Rgb ssp = m.sigma_s_prime();
     static const char* names[3] = {"r", "g", "b"};
+    std::vector<std::pair<double, std::string>> clamped;  // g value, its channels
     for (int c = 0; c < 3; ++c) {
         const double sp = ssp[c], sa = m.sigma_a[c];
         const double st = sp + sa;
         if (!(st > 0) || !(sp > 0)) continue;  // no scattering: nothing diffuses
         double g = m.g[c];
         const double gc = std::clamp(g, s.g.front(), s.g.back());
-        if (gc != g)
-            notes_.push_back("g." + std::string(names[c]) + " = " + num(g) + " is outside the exact profile's tables [" +
-                             num(s.g.front()) + ", " + num(s.g.back()) + "]: the g = " + num(gc) +
-                             " table is used at the same reduced albedo");
+        if (gc != g) {
+            auto it = std::find_if(clamped.begin(), clamped.end(), [&](const auto& p) { return p.first == g; });
+            if (it == clamped.end()) clamped.push_back({g, names[c]});
+            else it->second += std::string(", ") + names[c];
+        }
         ch_[c] = std::make_unique<ChannelProfile>(*tables_, sp / st, gc, m.eta);
         st_[c] = st * m.mm_per_unit;
         // all but 1e-6 of the channel; without absorption a power-law tail, capped at 1e6 mfp'
         const double r = std::min(ch_[c]->radius_containing(1.0 - 1e-6), 1e6);
         cutoff_ = std::max(cutoff_, r / st_[c]);
+    }
+    for (const auto& [g, channels] : clamped) {
+        const double gc = std::clamp(g, s.g.front(), s.g.back());
+        notes_.push_back("g = " + num(g) + " (" + channels + ") is outside the exact profile's tables [" + num(s.g.front()) +
+                         ", " + num(s.g.back()) + "]: the g = " + num(gc) + " table is used at the same reduced albedo");
     }
 }
 

@@ -47,6 +47,19 @@ double angle_poly(const std::vector<double>& v, double mu) {
     return sum;
 }
 
+// 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of stored samples pi I / M: the exit
+// distribution's integral (1 up to the interpolant's error).
+double exit_integral(const std::vector<double>& samples, double eta) {
+    double sum = 0;
+    const int steps = 512;
+    for (int i = 0; i < steps; ++i) {
+        const double mo = (i + 0.5) / steps;
+        const double mi = std::sqrt(std::max(0.0, 1.0 - (1.0 - mo * mo) / (eta * eta)));
+        sum += 2.0 * (1.0 - fresnel_dielectric(mo, eta)) * std::max(0.0, angle_poly(samples, mi)) * mo / steps;
+    }
+    return sum / (eta * eta);
+}
+
 // Gauss-Legendre nodes and weights on [0, 1], 8 points.
 constexpr double kGlX[8] = {0.019855071751231856, 0.10166676129318664, 0.2372337950418355, 0.4082826787521751,
                             0.5917173212478249, 0.7627662049581645, 0.8983332387068134, 0.9801449282487681};
@@ -375,6 +388,13 @@ int record_floats(const ProfileBuildSettings& s) {
 }  // namespace
 
 // ---------------------------------------------------------------- settings
+
+ProfileBuildSettings default_profile_build_settings() {
+    ProfileBuildSettings s;
+    s.g = {0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95};
+    s.eta = {1.0, 1.1, 1.2, 1.3, 1.33, 1.4, 1.5, 1.6, 1.8, 2.0};
+    return s;
+}
 
 std::string ProfileBuildSettings::validate() const {
     auto axis = [](const std::vector<double>& v, const char* name, double lo, double hi, bool allow_inf) -> std::string {
@@ -793,11 +813,8 @@ std::string ChannelProfile::range_error(const ProfileTables& t, double g, double
     if (thickness == kInf) {
         if (s.thickness.back() != kInf) return "the tables have no semi-infinite node";
     } else {
-        std::vector<double> fin;
-        for (double d : s.thickness)
-            if (d != kInf) fin.push_back(d);
-        if (fin.empty() || !(thickness >= fin.front() * (1 - 1e-12) && thickness <= fin.back() * (1 + 1e-12)))
-            return "thickness = " + num(thickness) + " mfp is outside the tables' slabs";
+        if (!(thickness > 0)) return "thickness = " + num(thickness) + ": expected > 0 transport mfp";
+        if (s.thickness.front() == kInf) return "the tables have no slabs";
     }
     return "";
 }
@@ -811,25 +828,26 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     const ProfileBuildSettings& s = t.settings;
     const int nb = s.bins.count, nci = int(s.cos_inside.size());
 
-    // Node weights: g and eta cubic Lagrange; thickness linear in ln d between finite nodes.
+    // Node weights: g and eta cubic Lagrange; the thickness (transport mfp, like the radii) is
+    // converted per g node to the tables' mean free paths, d / (1 - alpha g), then linear in ln d
+    // between the two finite nodes around it.
     auto wg = axis_weights(s.g, g), we = axis_weights(s.eta, eta);
-    std::vector<std::pair<int, double>> wd;
-    if (thickness == kInf) {
-        wd = {{int(s.thickness.size()) - 1, 1.0}};
-    } else {
-        std::vector<double> lnd;
-        for (double d : s.thickness)
-            if (d != kInf) lnd.push_back(std::log(d));
-        const double x = std::clamp(std::log(thickness), lnd.front(), lnd.back());
+    std::vector<double> lnd;
+    for (double d : s.thickness)
+        if (d != kInf) lnd.push_back(std::log(d));
+    auto thickness_weights = [&](double alpha, double gn) -> std::vector<std::pair<int, double>> {
+        if (thickness == kInf) return {{int(s.thickness.size()) - 1, 1.0}};
+        const double x = std::log(thickness / (1.0 - alpha * gn));
+        if (!(x >= lnd.front() - 1e-9 && x <= lnd.back() + 1e-9))
+            throw std::invalid_argument("exact profile: thickness " + num(thickness) + " transport mfp (" + num(std::exp(x)) +
+                                        " mfp at g = " + num(gn) + ") is outside the tables' slabs [" + num(std::exp(lnd.front())) +
+                                        ", " + num(std::exp(lnd.back())) + "] mfp");
+        if (lnd.size() == 1) return {{0, 1.0}};
         int i = int(std::upper_bound(lnd.begin(), lnd.end(), x) - lnd.begin()) - 1;
-        if (lnd.size() == 1) {
-            wd = {{0, 1.0}};
-        } else {
-            i = std::clamp(i, 0, int(lnd.size()) - 2);
-            const double f = (x - lnd[i]) / (lnd[i + 1] - lnd[i]);
-            wd = {{i, 1 - f}, {i + 1, f}};
-        }
-    }
+        i = std::clamp(i, 0, int(lnd.size()) - 2);
+        const double f = std::clamp((x - lnd[i]) / (lnd[i + 1] - lnd[i]), 0.0, 1.0);
+        return {{i, 1 - f}, {i + 1, f}};
+    };
 
     rho_.resize(nb);
     for (int b = 0; b < nb; ++b) rho_[b] = t.node_rho(b);
@@ -837,15 +855,16 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     angle_.assign(129, 0.0);  // inside radiance at mu' = mu_c + (1 - mu_c) j / 128 (this channel's eta)
     incidence_.assign(nci, 0.0);
     ci_ = s.cos_inside;
-    double ln_total = 0, single = 0, ballistic = 0, tail_k = 0, wsum_total = 0;
+    double ln_total = 0, single = 0, ballistic = 0, tail_k = 0, wsum_total = 0, own_flux = 0;
     const double mu_c = critical_cos(eta);
-    for (auto [ig, w1] : wg)
+    for (auto [ig, w1] : wg) {
+        const double gn = s.g[ig];
+        // The node's albedo at the same reduced albedo: alpha' = alpha (1 - g) / (1 - alpha g).
+        const double alpha = alpha_prime / (1.0 - gn + alpha_prime * gn);
+        const auto wd = thickness_weights(alpha, gn);
         for (auto [ie, w2] : we)
             for (auto [id, w3] : wd) {
                 const double w = w1 * w2 * w3;
-                const double gn = s.g[ig];
-                // The node's albedo at the same reduced albedo: alpha' = alpha (1 - g) / (1 - alpha g).
-                const double alpha = alpha_prime / (1.0 - gn + alpha_prime * gn);
                 const double u = alpha < 1.0 ? -std::log1p(-alpha) : 1e300;
                 // Multiple scattering goes as alpha^2 for small alpha: the profile values and the
                 // total are interpolated as ln(v / alpha^2) (smooth in u down to alpha = 0, and
@@ -864,8 +883,10 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     for (int b = 0; b < nb; ++b) lnv_[b] += ww * (std::log(std::max(r.profile[b], kTiny)) + ln_scale);
                     for (int j = 0; j < nci; ++j) incidence_[j] += ww * r.incidence[j];
                     for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_poly(r.angle, mu_c + (1 - mu_c) * j / 128.0);
+                    own_flux += ww * exit_integral(r.angle, s.eta[ie]);
                 }
             }
+    }
     (void)wsum_total;
     total_ = std::exp(ln_total);
     if (total_ < 1e-30) total_ = 0;
@@ -890,6 +911,17 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     tail_a_ *= fix;
 
     angle_norm_ = 1.0 / (eta * eta);  // radiance leaving = Ft L_inside / eta^2
+    // Mixing the inside radiance of nodes at other etas does not keep its exitance: scale it so
+    // that the exit distribution integrates to the weighted integrals of the nodes' own (1 up to
+    // their interpolants' error; at a node the scale is 1 and the samples stay as measured).
+    double mixed = 0;
+    const int steps = 512;
+    for (int i = 0; i < steps; ++i) mixed += 2.0 * exit_factor((i + 0.5) / steps) * ((i + 0.5) / steps) / steps;
+    if (mixed > 0 && own_flux > 0) angle_norm_ *= own_flux / mixed;
+    if (incidence_.back() > 0) {
+        const double last = incidence_.back();
+        for (double& v : incidence_) v /= last;  // exactly 1 at normal incidence
+    }
 }
 
 int ChannelProfile::segment_of(double rho) const {

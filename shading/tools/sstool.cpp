@@ -123,9 +123,9 @@ std::uint64_t count(const Args& a, const std::string& k, std::uint64_t def) {
 
 // The settings `make brdf-data` builds with (documented in shading/DIPOLE.md).
 ProfileBuildSettings build_settings(const Args& a) {
-    ProfileBuildSettings s;
-    s.g = a.list("--g", {0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95});
-    s.eta = a.list("--eta", {1.0, 1.1, 1.2, 1.3, 1.33, 1.4, 1.5, 1.6, 1.8, 2.0});
+    ProfileBuildSettings s = default_profile_build_settings();
+    s.g = a.list("--g", s.g);
+    s.eta = a.list("--eta", s.eta);
     s.thickness = a.list("--thickness", {INFINITY});
     s.photons = count(a, "--photons", s.photons);
     s.short_photons = count(a, "--short-photons", s.short_photons);

@@ -53,15 +53,21 @@ struct ProfileBuildSettings {
     int angle_bins = 32;               // inside cosine histogram of the high orders (quadratic fit)
     int angle_nodes = 8;               // inside radiance samples: Chebyshev nodes on [0, 1]
     double radiance_orders = 64;       // next-event radiance up to 64 / (1 - g) events, histogram above
-    std::uint64_t photons = 100000;    // full paths at normal incidence, per node
-    std::uint64_t short_photons = 1000000;  // low-order paths per node (see McSettings)
+    std::uint64_t photons = 80000;     // full paths at normal incidence, per g (all etas at once)
+    std::uint64_t short_photons = 800000;   // low-order paths (see McSettings)
     double short_orders = 20;          // ... stopped after this many transport events: 20 / (1 - g) events
     double roulette_order = 250;       // path-length roulette from 250 / (1 - g) events on
-    double oblique_fraction = 0.1;     // photons at each oblique incidence, relative to `photons`
+    double oblique_fraction = 0.06;    // photons at each oblique incidence, relative to `photons`
     std::uint64_t seed = 1;
     int threads = 0;                   // 0: all hardware threads
     std::string validate() const;
 };
+
+// The tables `make brdf-data` ships (build/brdf_data/subsurface_profiles.ssp): semi-infinite,
+// g in {0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95}, eta in {1, 1.1, 1.2, 1.3, 1.33, 1.4,
+// 1.5, 1.6, 1.8, 2}, the other settings ProfileBuildSettings' defaults (10 Monte Carlo runs at
+// normal incidence, each serving all etas, and 5 oblique ones each; a few CPU minutes).
+ProfileBuildSettings default_profile_build_settings();
 
 // One face (reflection or transmission) of one node at one albedo: the file's record.
 struct FaceRecord {
@@ -116,8 +122,10 @@ std::shared_ptr<const ProfileTables> shared_profile_tables(
 // in transport units. rd, disc are per unit power entering; angles are outside cosines.
 class ChannelProfile {
 public:
-    // face 0: reflection, 1: transmission (slab tables only). Throws std::invalid_argument if
-    // (g, eta, d) lies outside the tables (ChannelProfile::range_error says why).
+    // face 0: reflection, 1: transmission (slab tables only). `thickness` is in transport mfp
+    // (like the radii; converted per g node to the tables' mean free paths). Throws
+    // std::invalid_argument if (g, eta, d) lies outside the tables (range_error says why for g
+    // and eta).
     ChannelProfile(const ProfileTables& t, double alpha_prime, double g, double eta,
                    double thickness = std::numeric_limits<double>::infinity(), int face = 0);
     // Empty string when the tables cover (g, eta, d); otherwise the message.
