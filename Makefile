@@ -191,7 +191,7 @@ dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg
 FUZZ_APT_PACKAGES := clang libclang-rt-dev
 FUZZ_BUILD     := $(BUILD)/fuzz
 FUZZ_SECONDS   ?= 60
-FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz
+FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz ssp_fuzz
 SAN_FLAGS      := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -g
 SANITIZE_BUILD := $(BUILD)/sanitize
 TSAN_BUILD     := $(BUILD)/tsan

@@ -6,7 +6,8 @@ for x < 0 by an invisible blade), orthographic view of 20 x 2.5 mm across the ed
 reference is the closed-form half-plane exitance of the dipole
 (:func:`harness.reference.dipole_ref.half_plane_exitance`) plus single scattering on the lit side.
 
-* **fork**: ``finish { dipole { sigma_s_prime 1 sigma_a 0.05 ior 1.3 ... } }`` at several
+* **fork**: ``finish { dipole { sigma_s_prime 1 sigma_a 0.05 ior 1.3 ... profile dipole
+  single_scatter on } }`` (the dipole profile, whose closed form is the reference) at several
   ``error_bound`` values (nodes per lookup, trace time, error);
 * **stock**: POV-Ray 3.7's own subsurface on the same medium, configured the way its
   documentation asks (``translucency`` = 1/sigma_s' in mm, the pigment is the diffuse
@@ -48,7 +49,7 @@ box {{ <-100, -100, 5>, <0, 100, 5.01> no_image texture {{ pigment {{ rgb 0 }} }
 def fork_scene(error_bound: float, spacing: float = 0.0) -> str:
     """spacing 0: the automatic sample spacing (here max(mfp/2, extent/200) = 0.48 mm)."""
     finish = (f"dipole {{ sigma_s_prime {SIGMA_S_PRIME} sigma_a {SIGMA_A} ior {ETA} mm_per_unit 1 "
-              f"sample_spacing {spacing} error_bound {error_bound} }}")
+              f"sample_spacing {spacing} error_bound {error_bound} profile dipole single_scatter on }}")
     return SCENE.format(globals="", pigment=1, finish=finish, interior="")
 
 

@@ -72,11 +72,14 @@ class Case:
         return f"a'={self.alpha_prime:g} g={self.g:g} eta={self.eta:g}"
 
 
-def photons_for(case: Case, budget: int = 200_000) -> int:
-    """Reference photons: the budget at g = 0, fewer where each path is long (forward scattering,
-    high albedo), so every case costs about the same."""
-    slow = 1.0 / (1.0 - case.g) ** 0.5 * (1.0 + 4.0 * case.alpha_prime ** 8)
-    return int(max(20_000, budget / slow))
+def photons_for(case: Case, seconds: float = 45.0, most: int = 4_000_000, least: int = 20_000) -> int:
+    """Reference photons for about `seconds` of simulation: the cost per photon measured on a
+    pilot run of 2000 (long paths at high albedo and forward scattering cost far more)."""
+    a = case.albedo
+    t0 = time.perf_counter()
+    mc_subsurface.simulate(a, 1.0 - a, g=case.g, eta=case.eta, n_photons=2000, seed=99)
+    per = (time.perf_counter() - t0) / 2000
+    return int(min(most, max(least, seconds / max(per, 1e-9))))
 
 
 @dataclass
@@ -196,13 +199,14 @@ def expected_pixel(row: Row, view: int) -> tuple[float, float]:
 # ---------------------------------------------------------------- the grid
 
 def grid(alphas: Sequence[float] = ALPHAS, gs: Sequence[float] = GS, etas: Sequence[float] = ETAS,
-         budget: int = 200_000, log=print) -> list[Row]:
+         seconds: float = 45.0, log=print) -> list[Row]:
+    """Every case, each reference run sized to about `seconds`."""
     rows = []
     for g in gs:
         for eta in etas:
             for ap in alphas:
                 c = Case(g, eta, ap)
-                row = compare(c, photons=photons_for(c, budget))
+                row = compare(c, photons=photons_for(c, seconds))
                 rows.append(row)
                 lo, hi = row.covered
                 log(f"{c.label():26s} total MC {row.mc_total:.4f}+-{row.mc_total_err:.4f} exact {row.exact_total_err:+.4f} "
@@ -254,11 +258,12 @@ def plot_profiles(rows: Sequence[Row], path: Path) -> Path:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.reports.ss_profiles", description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="alpha' in {0.5, 0.99}, a tenth of the photons")
+    ap.add_argument("--quick", action="store_true", help="alpha' in {0.5, 0.99}, 4 s of simulation per case")
+    ap.add_argument("--seconds", type=float, default=45.0, help="simulation time per case (sizes the photon count)")
     ap.add_argument("--out", type=Path, default=REPO_ROOT / "out" / "ss_profiles")
     args = ap.parse_args(argv)
     alphas = (0.5, 0.99) if args.quick else ALPHAS
-    rows = grid(alphas, budget=20_000 if args.quick else 200_000)
+    rows = grid(alphas, seconds=4.0 if args.quick else args.seconds)
     args.out.mkdir(parents=True, exist_ok=True)
     plot_totals(rows, args.out / "totals.png")
     plot_profiles(rows, args.out / "profiles.png")

@@ -523,6 +523,7 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                         rec.incidence.assign(s.cos_inside.size(), 1.0);
                     }
             // Incidence factor: totals only, fewer photons.
+            int clamped = 0;
             McSettings ob = mc;
             ob.radial = false;
             ob.radiance_orders = 0;
@@ -538,7 +539,12 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                         for (int k = 0; k < s.albedos; ++k) {
                             FaceRecord& rec = rec_at(ig, ie, id, face, k);
                             const double m = (face == 0 ? r.top[ie] : r.bottom[ie]).multi[k];
-                            rec.incidence[ic] = rec.multi > 0 && m > 0 ? m / rec.multi : 1.0;
+                            // A ratio outside [0.05, 20] is noise of a run with too few paths for
+                            // this albedo (the physical factor stays within a few tenths of 1):
+                            // clamped, and counted in the log.
+                            double ratio = rec.multi > 0 && m > 0 ? m / rec.multi : 1.0;
+                            if (ratio < 0.05 || ratio > 20) ++clamped;
+                            rec.incidence[ic] = std::clamp(ratio, 0.05, 20.0);
                         }
             }
             if (log) {
@@ -547,9 +553,9 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                 std::snprintf(buf, sizeof buf,
                               "g=%g d=%g (%zu etas): %.2f s, %.3g flights, %d threads; tail amplitude flux/fit worst %.3f, "
                               "deconvolution residual %.1e, high-order angle fit rms residual worst %.3f, angular/exit "
-                              "flux mismatch worst %.4f",
+                              "flux mismatch worst %.4f, incidence factors clamped %d",
                               g, s.thickness[id], ne, sec, double(steps), normal.threads_used, diag.worst_tail_ratio,
-                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux);
+                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, clamped);
                 log(buf);
             }
         }
@@ -657,7 +663,17 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
     s.short_photons = get64(data + 136);
     s.seed = get64(data + 144);
     s.radiance_orders = getf64(data + 152);
+    if (get32(data + 76) != 0) fail(76, "expected 0 in the reserved field, found " + std::to_string(get32(data + 76)));
     if (!(s.bins.rho_0 > 0 && s.bins.rho_0 < 1e3)) fail(80, "expected the first radius in (0, 1000), found " + num(s.bins.rho_0));
+    // The generator's settings (the file's identity for --if-stale): ranges of ProfileBuildSettings.
+    if (!(s.short_orders >= 1 && s.short_orders <= 1e6)) fail(104, "expected short orders in [1, 1e6], found " + num(s.short_orders));
+    if (!(s.roulette_order >= 1 && s.roulette_order <= 1e9))
+        fail(112, "expected a roulette order in [1, 1e9], found " + num(s.roulette_order));
+    if (!(s.oblique_fraction > 0 && s.oblique_fraction <= 1))
+        fail(120, "expected an oblique fraction in (0, 1], found " + num(s.oblique_fraction));
+    if (s.photons < 1) fail(128, "expected at least one photon, found 0");
+    if (!(s.radiance_orders >= 2 && s.radiance_orders <= 1e5))
+        fail(152, "expected radiance orders in [2, 1e5], found " + num(s.radiance_orders));
     if (!(s.u_0 >= 0 && s.u_0 <= 30)) fail(88, "expected the first albedo node u in [0, 30], found " + num(s.u_0));
     if (!(s.u_step > 0 && s.u_0 + (s.albedos - 1) * s.u_step <= 30))
         fail(96, "expected an albedo step > 0 with the last node u <= 30, found " + num(s.u_step));
