@@ -216,6 +216,24 @@ def grid(alphas: Sequence[float] = ALPHAS, gs: Sequence[float] = GS, etas: Seque
     return rows
 
 
+def render_rows(rows: Sequence[Row], log=print) -> list[dict]:
+    """Render the slab of every row at default settings (the exact profile) and with ``profile
+    dipole`` at each of VIEWS; errors against the reference's next-event radiance."""
+    out = []
+    for row in rows:
+        for i, mu in enumerate(VIEWS):
+            want, err = expected_pixel(row, i)
+            ex = render_slab(row.case, cos_view=mu)
+            dp = render_slab(row.case, cos_view=mu, extra="profile dipole")
+            d = {"case": row.case.label(), "g": row.case.g, "eta": row.case.eta, "alpha_prime": row.case.alpha_prime,
+                 "cos_view": mu, "mc": want, "mc_err": err, "exact": ex, "dipole": dp,
+                 "exact_err": ex / want - 1.0, "dipole_err": dp / want - 1.0, "mc_rel_err": err / want}
+            out.append(d)
+            log(f"render {row.case.label():26s} view cos {mu:g}: MC {want:.5f} (+-{100 * err / want:.2f} %) exact "
+                f"{100 * d['exact_err']:+.2f} % dipole {100 * d['dipole_err']:+.2f} %")
+    return out
+
+
 def plot_totals(rows: Sequence[Row], path: Path) -> Path:
     plt = plotting.pyplot()
     gs = sorted({r.case.g for r in rows})
@@ -264,15 +282,36 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = ap.parse_args(argv)
     alphas = (0.5, 0.99) if args.quick else ALPHAS
     rows = grid(alphas, seconds=4.0 if args.quick else args.seconds)
+    renders = render_rows(rows)
     args.out.mkdir(parents=True, exist_ok=True)
     plot_totals(rows, args.out / "totals.png")
     plot_profiles(rows, args.out / "profiles.png")
-    (args.out / "ss_profiles.json").write_text(json.dumps([asdict(r) for r in rows], indent=1, default=float))
+    (args.out / "ss_profiles.json").write_text(json.dumps({"rows": [asdict(r) for r in rows], "renders": renders},
+                                                          indent=1, default=float))
     worst = max(abs(r.exact_total_err) for r in rows)
     worst_rd = max(r.exact_rd_max for r in rows)
-    print(f"exact profile: worst total error {100 * worst:.2f} %, worst Rd(r) error {100 * worst_rd:.1f} %; "
-          f"written to {args.out}")
+    worst_px = max(abs(d["exact_err"]) for d in renders)
+    print(f"exact profile: worst total error {100 * worst:.2f} %, worst Rd(r) error {100 * worst_rd:.1f} %, worst "
+          f"rendered radiance error {100 * worst_px:.2f} %; written to {args.out}")
+    print(markdown(rows, renders))
     return 0
+
+
+def markdown(rows: Sequence[Row], renders: Sequence[dict] = ()) -> str:
+    """The accuracy grid as Markdown tables (shading/DIPOLE.md section 10.6 carries one)."""
+    lines = ["| alpha' | g | eta | MC total +- se | exact total | dipole total | exact max Rd(r) | dipole max Rd(r) | r compared (mfp') |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lo, hi = r.covered
+        lines.append(f"| {r.case.alpha_prime:g} | {r.case.g:g} | {r.case.eta:g} | {r.mc_total:.4f} +- {r.mc_total_err:.4f} | "
+                     f"{100 * r.exact_total_err:+.2f} % | {100 * r.dipole_total_err:+.1f} % | {100 * r.exact_rd_max:.1f} % | "
+                     f"{100 * r.dipole_rd_max:.0f} % | {lo:.2g}-{hi:.2g} ({len(r.rd_radii)} bins) |")
+    if renders:
+        lines += ["", "| alpha' | g | eta | view cos | MC pixel (se) | exact | dipole |", "|---|---|---|---|---|---|---|"]
+        for d in renders:
+            lines.append(f"| {d['alpha_prime']:g} | {d['g']:g} | {d['eta']:g} | {d['cos_view']:g} | {d['mc']:.5f} "
+                         f"({100 * d['mc_rel_err']:.2f} %) | {100 * d['exact_err']:+.2f} % | {100 * d['dipole_err']:+.1f} % |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

@@ -196,16 +196,40 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     }
     // Where the tail carries more than 1 % of the total (high albedo, the asymptotic regime from a
     // few mfp' on) its amplitude conserves the flux; below that (low albedo: the tail holds a
-    // negligible flux but its shape is not yet asymptotic where the data stop) it continues
-    // the data.
-    double a = 0;
+    // negligible flux but is not yet asymptotic where the data stop) it continues the data with
+    // a power fitted to them: Rd = A exp(-k rho) rho^-p, k the asymptotic rate, (ln A, p) by
+    // weighted least squares over the last (up to 6) reliable bins beyond 1 mfp'.
+    const bool flux_tail = beyond > 0.01 * rec.multi;
+    double a = 0, fit_lnA = 0, fit_p = 3;
+    bool power_tail = false;
     if (k_tr * rho_t < 600) {
-        a = beyond > 0.01 * rec.multi ? beyond / tail_flux(k_tr, rho_t) : a_fit;
+        a = flux_tail ? beyond / tail_flux(k_tr, rho_t) : a_fit;
         if (!(std::isfinite(a) && a >= 0)) a = 0;
     }
+    if (!flux_tail) {
+        double S = 0, Sx = 0, Sy = 0, Sxx = 0, Sxy = 0;
+        int n = 0;
+        for (int b = std::max(b_one, b_end - 6); b < b_end; ++b, ++n) {
+            const double c = std::sqrt(bins.inner(b) * bins.outer(b));
+            const double w = se[b] > 0 ? sqr(m[b] / se[b]) : 1.0;
+            const double x = std::log(c), yv = std::log(m[b]) + k_tr * c;  // ln m + k rho = ln A - p ln rho
+            S += w;
+            Sx += w * x;
+            Sy += w * yv;
+            Sxx += w * x * x;
+            Sxy += w * x * yv;
+        }
+        const double det = S * Sxx - Sx * Sx;
+        if (n >= 3 && det > 0) {
+            const double slope = (S * Sxy - Sx * Sy) / det;
+            fit_p = -slope;
+            fit_lnA = (Sy - slope * Sx) / S;
+            power_tail = std::isfinite(fit_p) && std::isfinite(fit_lnA) && fit_p > 0;
+        }
+    }
     if (std::getenv("SSTOOL_DEBUG"))
-        std::fprintf(stderr, "  albedo %.6f: b_end %d rho_t %.3g k %.4g inside %.5g of %.5g, a flux %.4g fit %.4g\n", alpha, b_end,
-                     rho_t, k_tr, inside, rec.multi, a, a_fit);
+        std::fprintf(stderr, "  albedo %.6f: b_end %d rho_t %.3g k %.4g inside %.5g of %.5g, a flux %.4g fit %.4g, power tail %d p %.3f\n",
+                     alpha, b_end, rho_t, k_tr, inside, rec.multi, a, a_fit, int(power_tail), fit_p);
     if (a > 0 && a_fit > 0) {
         const double ratio = a / a_fit;
         if (std::fabs(std::log(ratio)) > std::fabs(std::log(diag.worst_tail_ratio))) diag.worst_tail_ratio = ratio;
@@ -218,7 +242,10 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     const std::vector<double> rho = node_positions(bins);
     std::vector<double> y(nb);
     for (int b = 0; b < nb; ++b) {
-        const double v = b < b_end ? m[b] : a * tail_shape(k_tr, rho[b]);
+        double v;
+        if (b < b_end) v = m[b];
+        else if (power_tail) v = std::exp(fit_lnA - k_tr * rho[b] - fit_p * std::log(rho[b]));
+        else v = a * tail_shape(k_tr, rho[b]);
         y[b] = std::log(std::max(v, kTiny));
     }
     RadialCurve c{rho.data(), y.data(), nb, std::log(10.0) / bins.per_decade};

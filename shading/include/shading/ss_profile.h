@@ -31,7 +31,7 @@ namespace shading {
 
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
-constexpr std::uint32_t kProfileGeneratorVersion = 1;
+constexpr std::uint32_t kProfileGeneratorVersion = 2;
 constexpr std::uint32_t kProfileFormatVersion = 1;
 
 class ProfileError : public std::runtime_error {
