@@ -1049,4 +1049,17 @@ double ChannelProfile::entry_factor(double cos_o) const {
     return incidence_[i] * (1 - f) + incidence_[i + 1] * f;
 }
 
+double alpha_prime_for_total(const ProfileTables& t, double total, double g, double eta,
+                             const std::function<double(double)>& single) {
+    auto f = [&](double ap) { return ChannelProfile(t, ap, g, eta).total() + (single ? single(ap) : 0.0); };
+    if (!(total > 0)) return 0.0;
+    if (total >= f(1.0)) return 1.0;
+    double lo = 0.0, hi = 1.0;  // the total rises monotonically with alpha'
+    for (int it = 0; it < 60 && hi - lo > 1e-10; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (f(mid) < total ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
 }  // namespace shading

@@ -309,3 +309,17 @@ TEST(DipoleRadialProfile, KeepsTheDipoleExactly) {
     EXPECT_TRUE(p.includes_single_scattering());
     EXPECT_EQ(p.mean_free_path(), d.channel(2).zr);  // the smallest: blue scatters most
 }
+
+TEST(ProfileTables, InversionFindsTheReducedAlbedoOfATotal) {
+    // alpha_prime_for_total inverts total(alpha') = tables + single: a round trip to 1e-8, and the
+    // ends (0 for no reflection, 1 beyond the largest reachable total).
+    const ProfileTables& t = small_tables();
+    auto single = [](double ap) { return 0.15 * ap; };  // any increasing single-scattering term
+    for (double g : {0.0, 0.5})
+        for (double ap : {0.05, 0.4, 0.8, 0.99, 0.9999}) {
+            const double total = ChannelProfile(t, ap, g, 1.2).total() + single(ap);
+            EXPECT_NEAR(alpha_prime_for_total(t, total, g, 1.2, single), ap, 1e-8) << g << " " << ap;
+        }
+    EXPECT_EQ(alpha_prime_for_total(t, 0.0, 0.0, 1.0, single), 0.0);
+    EXPECT_EQ(alpha_prime_for_total(t, 2.0, 0.0, 1.0, single), 1.0);
+}

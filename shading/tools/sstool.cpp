@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "shading/dipole.h"
 #include "shading/ss_profile.h"
 #include "shading/transport_mc.h"
 
@@ -39,6 +40,9 @@ const char* kUsage =
     "  mc [--g G] [--eta E] [--thickness D] [--cos-incidence C] --alpha-prime LIST\n"
     "        [--photons N] [--short-photons N] [--seed S] [--threads T]\n"
     "        JSON: the raw Monte Carlo totals (reflection and transmission) per albedo\n"
+    "  invert FILE --total LIST [--g G] [--eta E]\n"
+    "        the reduced albedo alpha' whose total diffuse reflectance (tables + exact single\n"
+    "        scattering, normal incidence, per power entering) is each value: \"this colour\"\n"
     "  decay --albedo A [--g G]          asymptotic transport decay rate per mfp\n"
     "  version                           the generator version\n";
 
@@ -248,6 +252,44 @@ int cmd_mc(const Args& a) {
     return 0;
 }
 
+// Exact single scattering per unit power entering at normal incidence: the hemispherical
+// integral of Dipole::single_scatter_brdf(wo, n) cos_o over the exits, over Ft(1).
+double single_albedo(double alpha_prime, double g, double eta) {
+    if (!(alpha_prime > 0)) return 0.0;
+    const double alpha = alpha_prime / (1.0 - g + alpha_prime * g);
+    Medium m;
+    m.sigma_s = Rgb(alpha);
+    m.sigma_a = Rgb(1.0 - alpha);
+    m.g = Rgb(g);
+    m.eta = eta;
+    const Dipole d(m);
+    const Vec3 n(0, 0, 1);
+    double sum = 0;
+    const int nt = 400;
+    for (int i = 0; i < nt; ++i) {  // midpoint in cos_o; the BRDF depends on wo only through cos_o at normal incidence
+        const double c = (i + 0.5) / nt;
+        const Vec3 wo(std::sqrt(1 - c * c), 0, c);
+        sum += d.single_scatter_brdf(wo, n).r * c * 2 * kPi / nt;
+    }
+    return sum / fresnel_transmittance(1.0, eta);
+}
+
+int cmd_invert(const Args& a) {
+    if (a.pos.size() != 1) throw UsageError("invert needs one FILE");
+    const std::vector<std::uint8_t> bytes = read_file(a.pos[0]);
+    auto t = load_profile_tables(bytes.data(), bytes.size(), a.pos[0]);
+    const double g = a.number("--g", 0.0), eta = a.number("--eta", 1.0);
+    const std::vector<double> totals = a.list("--total", {});
+    if (totals.empty()) throw UsageError("invert needs --total LIST");
+    std::cout << "{\"g\": " << jnum(g) << ", \"eta\": " << jnum(eta) << ", \"rows\": [";
+    for (std::size_t i = 0; i < totals.size(); ++i) {
+        const double ap = alpha_prime_for_total(*t, totals[i], g, eta, [&](double x) { return single_albedo(x, g, eta); });
+        std::cout << (i ? ", " : "") << "{\"total\": " << jnum(totals[i]) << ", \"alpha_prime\": " << jnum(ap) << "}";
+    }
+    std::cout << "]}\n";
+    return 0;
+}
+
 int cmd_decay(const Args& a) {
     std::printf("%.12g\n", transport_decay_rate(a.number("--albedo", 0.5), a.number("--g", 0.0)));
     return 0;
@@ -269,7 +311,8 @@ int main(int argc, char** argv) {
         {"-o", true},        {"--if-stale", false},     {"--g", true},          {"--eta", true},     {"--thickness", true},
         {"--photons", true}, {"--short-photons", true}, {"--albedos", true},    {"--seed", true},    {"--threads", true},
         {"--quiet", false},  {"--alpha-prime", true},   {"--face", true},       {"--edges", true},   {"--cos", true},
-        {"--radii", true},   {"--cos-incidence", true}, {"--albedo", true},     {"--help", false},   {"-h", false}};
+        {"--radii", true},   {"--cos-incidence", true}, {"--albedo", true},     {"--help", false},   {"-h", false},
+        {"--total", true}};
     try {
         const Args a = parse(argc, argv, known);
         if (a.flag("--help") || a.flag("-h")) {
@@ -281,6 +324,7 @@ int main(int argc, char** argv) {
         if (cmd == "eval") return cmd_eval(a);
         if (cmd == "mc") return cmd_mc(a);
         if (cmd == "decay") return cmd_decay(a);
+        if (cmd == "invert") return cmd_invert(a);
         if (cmd == "version") {
             std::printf("%u\n", kProfileGeneratorVersion);
             return 0;

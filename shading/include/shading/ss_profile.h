@@ -157,4 +157,12 @@ private:
     double angle_norm_ = 1;
 };
 
+// The reduced albedo alpha' whose total diffuse reflectance at normal incidence, multiple
+// scattering (these tables) plus `single(alpha')` (the caller's single-scattering albedo, e.g.
+// from Dipole::single_scatter_brdf), equals `total` (in [0, the total at alpha' = 1]): the
+// inversion "this diffuse colour" of pbrt's SubsurfaceFromDiffuse, by bisection (1e-10 in
+// alpha'). Returns 1 when `total` is at or above the largest reachable value.
+double alpha_prime_for_total(const ProfileTables& t, double total, double g, double eta,
+                             const std::function<double(double)>& single);
+
 }  // namespace shading
