@@ -44,7 +44,8 @@ const char* kUsage =
     "        the reduced albedo alpha' whose total diffuse reflectance (tables + exact single\n"
     "        scattering, normal incidence, per power entering) is each value: \"this colour\"\n"
     "  decay --albedo A [--g G]          asymptotic transport decay rate per mfp\n"
-    "  version                           the generator version\n";
+    "  version                           the generator version\n"
+    "environment: SSTOOL_DEBUG=1 makes build print each albedo's tail and angular checks\n";
 
 struct Args {
     std::vector<std::string> pos;
