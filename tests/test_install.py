@@ -63,7 +63,8 @@ def test_layout(prefix):
     for f in ("bin/povray-brdf", "bin/brdftool", "etc/povray-brdf/povray.conf", "etc/povray-brdf/povray.ini",
               "share/povray-brdf/include/brdf_metals.inc", "share/povray-brdf/include/colors.inc",
               "share/povray-brdf/brdf_data/gold.brdf", "share/povray-brdf/doc/README.md",
-              "share/povray-brdf/doc/shading/MODELS.md", "share/povray-brdf/doc/docs/fitting.md"):
+              "share/povray-brdf/doc/shading/MODELS.md", "share/povray-brdf/doc/docs/fitting.md",
+              "bin/sstool", "share/povray-brdf/brdf_data/subsurface_profiles.ssp"):
         assert (prefix / f).is_file(), f
     assert not (prefix / "bin" / "povray").exists()  # stock's name stays stock's
     assert f"Library_Path={share}/brdf_data" in (etc / "povray.ini").read_text()
@@ -74,6 +75,9 @@ def test_layout(prefix):
     out = subprocess.run([str(prefix / "bin" / "brdftool"), "info", str(share / "brdf_data" / "gold.brdf")],
                          capture_output=True, text=True)
     assert out.returncode == 0 and "isotropic" in out.stdout
+    out = subprocess.run([str(prefix / "bin" / "sstool"), "info", str(share / "brdf_data" / "subsurface_profiles.ssp")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0 and "exact subsurface profiles" in out.stdout
 
 
 def test_installed_binary_renders_with_installed_conf(prefix, fork, tmp_path):
