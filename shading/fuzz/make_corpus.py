@@ -162,7 +162,7 @@ def main(brdftool, out):
         "truncated-payload": sb[:len(sb) - 5],
         "trailing-bytes": sb + b"\0\0\0\0",
         "wrong-magic": b"PVSSPROX" + sb[8:],
-        "version-2": sp("<I", 8, 2),
+        "version-1": sp("<I", 8, 1),
         "flags-unknown": sp("<I", 36, 4),
         "flags-slab-one-face": sp("<I", 36, 1),
         "g-count-zero": sp("<I", 40, 0),

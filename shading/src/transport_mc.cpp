@@ -29,7 +29,9 @@ int RadialBins::index(double rho) const {
 
 std::vector<double> McSettings::radiance_cosines() const {
     std::vector<double> mu(std::max(0, radiance_nodes));
-    for (int j = 0; j < radiance_nodes; ++j) mu[j] = 0.5 * (1.0 - std::cos(kPi * (j + 0.5) / radiance_nodes));
+    // Chebyshev-Radau nodes: cosine-spaced, the last exactly 1 (normal exit, measured rather than
+    // extrapolated), the first above 0 (the estimate's 1/mu grows at grazing).
+    for (int j = 0; j < radiance_nodes; ++j) mu[j] = 0.5 * (1.0 - std::cos(kPi * (j + 0.5) / (radiance_nodes - 0.5)));
     return mu;
 }
 

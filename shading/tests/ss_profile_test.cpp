@@ -130,7 +130,7 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
         {"empty", [](auto& b) { b.clear(); }, "offset 0: expected a header of 160 bytes"},
         {"truncated header", [](auto& b) { b.resize(100); }, "offset 100: expected a header"},
         {"magic", [](auto& b) { b[0] = 'X'; }, "offset 0: expected the magic"},
-        {"version", [&](auto& b) { set32(b, 8, 2); }, "offset 8: expected format version 1, found 2"},
+        {"version", [&](auto& b) { set32(b, 8, 1); }, "offset 8: expected format version 2, found 1"},
         {"flags", [&](auto& b) { set32(b, 36, 4); }, "offset 36: expected flags"},
         {"g count", [&](auto& b) { set32(b, 40, 0); }, "offset 40: expected 1 to 64 g nodes, found 0"},
         {"albedo count", [&](auto& b) { set32(b, 52, 100000); }, "offset 52: expected 4 to 1000 albedo nodes"},

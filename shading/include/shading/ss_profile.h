@@ -31,8 +31,8 @@ namespace shading {
 
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
-constexpr std::uint32_t kProfileGeneratorVersion = 2;
-constexpr std::uint32_t kProfileFormatVersion = 1;
+constexpr std::uint32_t kProfileGeneratorVersion = 3;
+constexpr std::uint32_t kProfileFormatVersion = 2;
 
 class ProfileError : public std::runtime_error {
 public:
@@ -51,7 +51,7 @@ struct ProfileBuildSettings {
     int albedos = 48;                  // up to u = 11.85: alpha = 1 - 7.1e-6
     RadialBins bins;                   // disc [0, 0.01) + 10 per decade to 1000 transport mfp
     int angle_bins = 32;               // inside cosine histogram of the high orders (quadratic fit)
-    int angle_nodes = 8;               // inside radiance samples: Chebyshev nodes on [0, 1]
+    int angle_nodes = 8;               // inside radiance samples (angle_cosine: the last at 1)
     double radiance_orders = 64;       // next-event radiance up to 64 / (1 - g) events, histogram above
     std::uint64_t photons = 80000;     // full paths at normal incidence, per g (all etas at once)
     std::uint64_t short_photons = 800000;   // low-order paths (see McSettings)
@@ -77,7 +77,7 @@ struct FaceRecord {
     double tail_k = 0;     // beyond rho_tail: Rd = tail_a (1 + k rho) exp(-k rho) / rho^3, k per transport mfp
     double tail_a = 0;
     double rho_tail = 0;
-    std::vector<double> angle;      // pi L_inside / M at the Chebyshev nodes of [0, 1] (angle_cosine)
+    std::vector<double> angle;      // pi L_inside / M at the inside cosines angle_cosine(j)
     std::vector<double> incidence;  // multi(cos_inside[i]) / multi(1)
     std::vector<double> profile;    // Rd at the radial nodes (per transport mfp^2)
 };
@@ -94,7 +94,7 @@ public:
 
     const FaceRecord& record(int ig, int ie, int id, int face, int k) const;
     double albedo(int k) const { return 1.0 - std::exp(-(settings.u_0 + k * settings.u_step)); }
-    // Inside cosine of angle sample j: 0.5 (1 - cos(pi (j + 1/2) / angle_nodes)).
+    // Inside cosine of angle sample j: 0.5 (1 - cos(pi (j + 1/2) / (angle_nodes - 1/2))); the last 1.
     double angle_cosine(int j) const;
     double node_rho(int b) const;    // radial node position (transport mfp)
     int radial_nodes() const { return settings.bins.count; }

@@ -72,7 +72,8 @@ struct McSettings {
     // azimuthal symmetry of normal incidence: the estimate uses a fixed azimuth).
     int radiance_orders = 0;
     int radiance_nodes = 8;
-    std::vector<double> radiance_cosines() const;  // Chebyshev nodes on [0, 1], increasing
+    // 0.5 (1 - cos(pi (j + 1/2) / (n - 1/2))), j < n: increasing, the last 1
+    std::vector<double> radiance_cosines() const;
     // Empty if valid, else the first problem.
     std::string validate() const;
 };
