@@ -56,8 +56,8 @@ def test_shadow_edge_with_the_exact_profile_at_default_settings(fork):
     r = runner.render(dipole_bench.edge_exact_scene(half=8.0), fork, width=128, height=128, float_exr=True, threads=1)
     mx, rms, _ = dipole_bench.edge_errors(r.image, half=8.0, exact=True)
     print(f"exact profile, default: max {mx:.2%}, rms {rms:.2%}")
-    assert mx < 0.03
-    assert rms < 0.005
+    assert mx < EDGE_MAX_TOL
+    assert rms < EDGE_RMS_TOL
     flat = runner.render(dipole_bench.edge_exact_scene("refine_levels 0", half=8.0), fork, width=128, height=128,
                          float_exr=True, threads=1)
     mx0, _, _ = dipole_bench.edge_errors(flat.image, half=8.0, exact=True)

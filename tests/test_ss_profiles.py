@@ -23,6 +23,30 @@ from harness.reference import dipole_ref, mc_subsurface
 from harness.reports import ss_profiles as sp
 
 
+#: Named tolerances (docs/claims.md reads them). Monte Carlo ones hold together with "within 3
+#: standard errors"; the measured values are the seeded runs of the fast suite.
+#: The harness simulator's total vs Chandrasekhar (eta 1, isotropic), relative: measured 0.29 %.
+MC_TOTAL_TOL = 0.015
+#: ... its next-event radiance at mu 1 and 0.5, relative: measured 0.37 % at most.
+MC_RADIANCE_TOL = 0.02
+#: The exact profile's total vs the simulator, relative: measured 0.41 % at most.
+EXACT_TOTAL_TOL = 0.02
+#: ... its multiple-scattering Rd(r) in every resolved bin: measured 2.3 % at most.
+EXACT_RD_TOL = 0.10
+#: The dipole in its band (alpha' 0.99, eta 1): total within (measured 0.57 %) and Rd(r >= 4 mfp')
+#: within (measured 21.5 %); out of it (alpha' 0.5, eta 1.5) at least this far off (measured 58 %).
+DIPOLE_BAND_TOL = 0.02
+DIPOLE_FAR_TOL = 0.25
+DIPOLE_OUT_MIN = 0.30
+#: A slab rendered at default settings vs Chandrasekhar's radiance (eta 1, isotropic; no noise
+#: in the reference): measured 0.14 % at most. Was 2 %, which a 1 % error of the exact
+#: profile's table read would pass (issue 19).
+SLAB_CHANDRASEKHAR_TOL = 0.005
+#: ... vs the simulator's radiance (g 0.5, eta 1.33; the reference's own error 0.34 %):
+#: measured 0.14 %.
+SLAB_MC_TOL = 0.02
+
+
 @pytest.fixture(scope="module")
 def tables():
     return ss_profiles()
@@ -47,7 +71,7 @@ def test_simulator_matches_chandrasekhar_total_and_radiance():
         r = mc_subsurface.simulate(w, 1.0 - w, n_photons=20000, seed=1, views=mc_subsurface.view_directions([1.0, 0.5]))
         exact = dipole_ref.plane_albedo_isotropic(w)
         print(f"w {w}: total {r.total:.5f} +- {r.total_err:.5f} vs {exact:.5f}")
-        assert abs(r.total - exact) < 3 * r.total_err and abs(r.total / exact - 1) < 0.015
+        assert abs(r.total - exact) < 3 * r.total_err and abs(r.total / exact - 1) < MC_TOTAL_TOL
         single = w * (1 - math.log(2)) / 2
         assert abs(r.single - single) < 3 * r.single_err
         for i, mu in enumerate((1.0, 0.5)):
@@ -55,7 +79,7 @@ def test_simulator_matches_chandrasekhar_total_and_radiance():
             err = math.hypot(r.radiance_single_err[i], r.radiance_multiple_err[i])
             want = dipole_ref.plane_radiance_isotropic(w, mu)
             print(f"   radiance mu {mu}: {got:.5f} +- {err:.5f} vs {want:.5f}")
-            assert abs(got - want) < 3 * err and abs(got / want - 1) < 0.02
+            assert abs(got - want) < 3 * err and abs(got / want - 1) < MC_RADIANCE_TOL
             assert abs(r.radiance_single[i] - w / (4 * (mu + 1))) < 3 * r.radiance_single_err[i]
 
 
@@ -82,9 +106,9 @@ def test_exact_profile_matches_the_simulator(tables, g, eta, ap, photons):
     print(f"{row.case.label()}: total MC {row.mc_total:.4f} +- {row.mc_total_err:.4f}, exact {row.exact_total_err:+.4f}, "
           f"dipole {row.dipole_total_err:+.4f}; Rd(r) exact errors "
           + " ".join(f"{r:.2g}:{e:+.3f}" for r, e in zip(row.rd_radii, row.exact_rd_err)))
-    assert abs(row.exact_total_err) < 0.02
+    assert abs(row.exact_total_err) < EXACT_TOTAL_TOL
     assert len(row.rd_radii) >= 4
-    assert row.exact_rd_max < 0.10
+    assert row.exact_rd_max < EXACT_RD_TOL
 
 
 def test_dipole_holds_only_in_its_band(tables):
@@ -95,12 +119,12 @@ def test_dipole_holds_only_in_its_band(tables):
     hi = sp.compare(sp.Case(0.0, 1.0, 0.99), tables=tables, photons=30_000, seed=4)
     far = [e for r, e in zip(hi.rd_radii, hi.dipole_rd_err) if r >= 4 and e == e]
     print(f"alpha' 0.99: dipole total {hi.dipole_total_err:+.4f}, Rd(r >= 4) {far}")
-    assert abs(hi.dipole_total_err) < 0.02
-    assert far and max(abs(e) for e in far) < 0.25
+    assert abs(hi.dipole_total_err) < DIPOLE_BAND_TOL
+    assert far and max(abs(e) for e in far) < DIPOLE_FAR_TOL
     lo = sp.compare(sp.Case(0.0, 1.5, 0.5), tables=tables, photons=100_000, seed=5)
     print(f"alpha' 0.5, eta 1.5: dipole total {lo.dipole_total_err:+.4f}, exact {lo.exact_total_err:+.4f}")
-    assert lo.dipole_total_err > 0.30
-    assert abs(lo.exact_total_err) < 0.02
+    assert lo.dipole_total_err > DIPOLE_OUT_MIN
+    assert abs(lo.exact_total_err) < EXACT_TOTAL_TOL
 
 
 # ---------------------------------------------------------------- renders at default settings
@@ -108,13 +132,13 @@ def test_dipole_holds_only_in_its_band(tables):
 @pytest.mark.parametrize("ap", [0.5, 0.9, 0.99])
 def test_slab_renders_chandrasekhar_at_default_settings(ap):
     # eta = 1, isotropic, lit at normal incidence: the rendered pixel (pi L for irradiance 1) within
-    # 2 % of w H(mu) H(1) / (4 (mu + 1)) at normal view and at 60 degrees.
+    # SLAB_CHANDRASEKHAR_TOL of w H(mu) H(1) / (4 (mu + 1)) at normal view and at 60 degrees.
     case = sp.Case(0.0, 1.0, ap)
     for mu in (1.0, 0.5):
         px = sp.render_slab(case, cos_view=mu)
         want = dipole_ref.plane_radiance_isotropic(ap, mu)
         print(f"alpha' {ap} view cos {mu}: {px:.5f} vs {want:.5f} ({px / want - 1:+.4f})")
-        assert abs(px / want - 1) < 0.02
+        assert abs(px / want - 1) < SLAB_CHANDRASEKHAR_TOL
 
 
 def test_slab_renders_the_simulator_at_default_settings():
@@ -125,7 +149,7 @@ def test_slab_renders_the_simulator_at_default_settings():
         want, err = sp.expected_pixel(row, i)
         px = sp.render_slab(row.case, cos_view=mu)
         print(f"view cos {mu}: {px:.5f} vs {want:.5f} +- {err:.5f} ({px / want - 1:+.4f})")
-        assert abs(px / want - 1) < 0.02
+        assert abs(px / want - 1) < SLAB_MC_TOL
 
 
 def test_profile_dipole_counts_single_scattering_once():

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <vector>
 
@@ -79,6 +80,9 @@ TEST(TransportMc, HFunctionHelperMatchesAnotherMethod) {
     EXPECT_NEAR(chandrasekhar_h(1.0, 0.99), 2.47279283, 1e-6);
 }
 
+// The total against Chandrasekhar's exact eta = 1 result, relative (docs/claims.md reads it).
+constexpr double kChandrasekharTol = 0.015;
+
 TEST(TransportMc, IndexMatchedIsotropicTotalIsChandrasekhars) {
     // Tolerance stated before measuring: within 4 standard errors and 1.5 %; the single part
     // within 4 se of the exact w (1 - ln 2) / 2.
@@ -91,7 +95,8 @@ TEST(TransportMc, IndexMatchedIsotropicTotalIsChandrasekhars) {
         const double got = r.top[0].single[k] + r.top[0].multi[k];
         const double se = std::hypot(r.top[0].single_se[k], r.top[0].multi_se[k]);
         EXPECT_LT(std::fabs(got - exact), 4 * se) << "albedo " << w;
-        EXPECT_LT(std::fabs(got / exact - 1.0), 0.015) << "albedo " << w;
+        EXPECT_LT(std::fabs(got / exact - 1.0), kChandrasekharTol) << "albedo " << w;
+        std::printf("albedo %g: total %.5f vs %.5f (%+.2e)\n", w, got, exact, got / exact - 1.0);
         const double single = w * (1.0 - std::log(2.0)) / 2.0;
         EXPECT_LT(std::fabs(r.top[0].single[k] - single), 4 * r.top[0].single_se[k]) << "albedo " << w;
         EXPECT_EQ(r.top[0].ballistic[k], 0.0);
