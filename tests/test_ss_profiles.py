@@ -25,10 +25,10 @@ from harness.reports import ss_profiles as sp
 
 #: Named tolerances (docs/claims.md reads them). Monte Carlo ones hold together with "within 3
 #: standard errors"; the measured values are the seeded runs of the fast suite.
-#: The harness simulator's total vs Chandrasekhar (eta 1, isotropic), relative: measured 0.29 %.
-MC_TOTAL_TOL = 0.015
-#: ... its next-event radiance at mu 1 and 0.5, relative: measured 0.37 % at most.
-MC_RADIANCE_TOL = 0.02
+#: The harness simulator's total vs Chandrasekhar (eta 1, isotropic), relative: measured 0.47 %.
+MC_TOTAL_TOL = 0.01
+#: ... its next-event radiance at mu 1 and 0.5, relative: measured 0.10 % at most.
+MC_RADIANCE_TOL = 0.01
 #: The exact profile's total vs the simulator, relative: measured 0.41 % at most.
 EXACT_TOTAL_TOL = 0.02
 #: ... its multiple-scattering Rd(r) in every resolved bin: measured 2.3 % at most.
@@ -66,9 +66,12 @@ def test_h_function_by_two_methods():
 def test_simulator_matches_chandrasekhar_total_and_radiance():
     # eta = 1, isotropic, normal incidence: total 1 - H(1) sqrt(1 - w); single part w (1 - ln 2)/2;
     # next-event radiance pi L / E = w H(mu) H(1) / (4 (mu + 1)) at mu = 1 and 0.5. Stated: within
-    # 3 standard errors and 1.5 % (total), 2 % (radiance).
+    # 3 standard errors and MC_TOTAL_TOL (total), MC_RADIANCE_TOL (radiance).
     for w in (0.5, 0.9):
-        r = mc_subsurface.simulate(w, 1.0 - w, n_photons=20000, seed=1, views=mc_subsurface.view_directions([1.0, 0.5]))
+        # 200 000 photons (about a second): standard errors 0.2-0.35 %, so that a 1 % error of
+        # the simulator fails (issue 19; at 20 000 a +1.3 % albedo error passed).
+        r = mc_subsurface.simulate(w, 1.0 - w, n_photons=200_000, seed=1,
+                                   views=mc_subsurface.view_directions([1.0, 0.5]))
         exact = dipole_ref.plane_albedo_isotropic(w)
         print(f"w {w}: total {r.total:.5f} +- {r.total_err:.5f} vs {exact:.5f}")
         assert abs(r.total - exact) < 3 * r.total_err and abs(r.total / exact - 1) < MC_TOTAL_TOL
