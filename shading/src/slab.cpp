@@ -119,15 +119,10 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d) {
     }
     scale = std::min(scale, cutoff);
     auto same = [ch](double r) { return Rgb(ch[0].R(r), ch[1].R(r), ch[2].R(r)); };
-    auto opposite = [ch, d](double s) {
-        const double rho = std::sqrt(std::max(0.0, s * s - d * d));
-        return Rgb(ch[0].T(rho), ch[1].T(rho), ch[2].T(rho));
-    };
+    auto transmit = [ch](double rho) { return Rgb(ch[0].T(rho), ch[1].T(rho), ch[2].T(rho)); };
     // The disc integrals numerically (RdProfile's Gauss-Legendre on its nodes): the closed-form
     // totals above are the independent check (SlabProfile tests).
     out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff);
-    out.opposite = std::make_shared<const RdProfile>(opposite, RdProfile::Fn(), scale, std::hypot(cutoff, d));
-    auto transmit = [ch](double rho) { return Rgb(ch[0].T(rho), ch[1].T(rho), ch[2].T(rho)); };
     out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
     return out;
 }

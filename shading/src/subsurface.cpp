@@ -869,24 +869,35 @@ Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0
     return sum;
 }
 
-Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& opposite, const Vec3& x, const Vec3& nx,
+Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                    double d, double r0, double h, double max_angle, const Rgb& near_opposite,
                                    std::size_t* visited) const {
     Rgb sum;
     if (nodes_.empty()) return sum;
     const double inner2 = sqr(std::max(0.0, r0 - h)), outer = r0 + h, outer2 = outer * outer;
     const double d2 = d * d;
-    // The opposite face's near field: inside the window (in the lateral distance rho =
-    // sqrt(s^2 - d^2)) its points only give their irradiance to a (1 - w)-weighted mean, which
-    // lights the part of T inside the window (near_opposite, integrated, not sampled: T's peak
-    // is as narrow as the slab and would fall between samples).
-    double near_area = 0;
-    Rgb near_flux;
-    const double cut_same2 = sqr(same.r_max()), cut_opp2 = sqr(opposite.r_max());
+    const double cut_same2 = sqr(same.r_max()), cut_t = transmit.r_max();
+    // rho >= sqrt(s^2 - d^2): nothing of T beyond s^2 = r_max^2 + d^2
+    const double cut_opp2 = cut_t * cut_t + d2;
     const double cut2 = std::max(cut_same2, cut_opp2);
     const double angle2 = max_angle * max_angle;
     const double gain_cap = std::max(1.0, 1.0 / angle2);
     constexpr double kHalfPi = 0.5 * kPi;
+    // The lateral distance of p from x for the transmission profile: rho^2 = s^2 - min(v.nx, d)^2
+    // (v = x - p): a flat slab's sqrt(s^2 - d^2) on its opposite face, the distance across
+    // x's normal line where the far side is closer than d (a curved object), and never below
+    // the lateral distance, which moves by at most |p - q| between points p, q.
+    auto rho_of = [&](const Vec3& p) {
+        const Vec3 v = x - p;
+        const double vn = std::min(std::fabs(dot(v, nx)), d);
+        return std::sqrt(std::max(0.0, dot(v, v) - vn * vn));
+    };
+    // The opposite face's near field: inside the window (in rho) its points only give their
+    // irradiance to a (1 - w)-weighted mean, which lights the part of T inside the window
+    // (near_opposite, integrated, not sampled: T's peak is as narrow as the slab and would
+    // fall between samples).
+    double near_area = 0;
+    Rgb near_flux;
     std::size_t opened = 0;
     // Stack entries: node, side (0: not known yet, 1: every normal on nx's side, 2: every
     // normal on the other side; a side, once known, holds for the subtree).
@@ -895,22 +906,20 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& oppos
     int top = 0;
     stack[top] = 0;
     sides[top++] = 0;
-    // A point or a whole node of known side: its profile, the window (same side only).
     auto add_point = [&](int i, bool opp) {
         const Leaf& s = leaves_[i];
         const Vec3 v = x - s.p;
         const double r2 = dot(v, v);
         if (opp) {
             if (r2 > cut_opp2) return;
-            const double rho2 = std::max(0.0, r2 - d2);
+            const double rho = rho_of(s.p);
             double w = 1.0;
-            if (rho2 < outer2) {
-                w = rho2 <= inner2 ? 0.0 : window(std::sqrt(rho2), r0, h);
-                const double a = (1.0 - w) * points_[i].area;
-                near_area += a;
+            if (rho < outer) {
+                w = rho * rho <= inner2 ? 0.0 : window(rho, r0, h);
+                near_area += (1.0 - w) * points_[i].area;
                 near_flux += s.flux * (1.0 - w);
             }
-            if (w > 0) sum += opposite.rd(std::sqrt(r2)) * s.flux * w;
+            if (w > 0) sum += transmit.rd(rho) * s.flux * w;
             return;
         }
         if (r2 <= inner2 || r2 > cut_same2) return;
@@ -927,6 +936,12 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& oppos
         if (!nd.lit) continue;
         const double dbox2 = box_distance2(x, nd.lo, nd.hi);
         if (dbox2 > cut2) continue;
+        // The side an aggregate of this node takes: `side` where known; else, for a node of
+        // one sheet (its normals within 90 degrees of its axis: a curved surface crossing the
+        // plane of nx, e.g. the rim of a sphere seen from x), its axis's side (its points on
+        // the other side are few, at the seam of the two profiles); a node whose normals
+        // spread wider (both faces of a sheet) has none and is opened.
+        int agg_side = side;
         if (side == 0) {
             // The cone's axis at angle phi from nx, half-angle c: every normal has dot > 0 with
             // nx when phi + c < pi/2, dot < 0 when phi - c > pi/2.
@@ -934,6 +949,7 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& oppos
             const double phi = std::acos(std::max(-1.0, std::min(1.0, cc.axis[0] * nx.x + cc.axis[1] * nx.y + cc.axis[2] * nx.z)));
             if (phi + cc.angle < kHalfPi) side = 1;
             else if (phi - cc.angle > kHalfPi) side = 2;
+            agg_side = side != 0 ? side : (cc.angle < kHalfPi ? (phi < kHalfPi ? 1 : 2) : 0);
         }
         if (side == 1 && dbox2 > cut_same2) continue;
         if (side == 2 && dbox2 > cut_opp2) continue;
@@ -944,15 +960,12 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& oppos
             }
             continue;
         }
-        // Aggregate a node of one side wholly beyond the window's ramp (the opposite face's
-        // window is in rho: beyond it when s^2 > outer^2 + d^2).
-        if ((side == 1 && dbox2 > outer2) || (side == 2 && dbox2 > outer2 + d2)) {
-            const RdProfile& rd = side == 1 ? same : opposite;
+        if (agg_side == 1 && dbox2 > outer2) {
+            // As far_exitance: Rd at the centre plus (1/2) tr(H Sigma).
             const Agg& g = aggs_[k];
             const Vec3 v = g.centre - x;
             const double dc2 = dot(v, v);
-            if (double(nd.diag2) < angle2 * std::min(rd.angle_gain2(dc2), gain_cap) * dc2) {
-                // As far_exitance: Rd at the centre plus (1/2) tr(H Sigma).
+            if (double(nd.diag2) < angle2 * std::min(same.angle_gain2(dc2), gain_cap) * dc2) {
                 const double dc = std::sqrt(dc2), inv = 1.0 / dc;
                 const Vec3 u = v * inv;
                 const double* C = g.cov;
@@ -961,7 +974,36 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& oppos
                                    u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
                 const double a = 0.5 * uCu, b = 0.5 * (C[0] + C[1] + C[2] - uCu) * inv;
                 Rgb f0, f1, f2;
-                rd.eval(dc, &f0, &f1, &f2);
+                same.eval(dc, &f0, &f1, &f2);
+                sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
+                sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
+                sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
+                continue;
+            }
+        } else if (agg_side == 2) {
+            // T at the centre's rho plus the second-order term of its expansion in the plane
+            // across nx (exact geometry for a flat slab, where rho is the in-plane distance):
+            // (1/2) tr(H Sigma_p), H = T'' u u^T + (T'/rho)(I - u u^T) in that plane, Sigma_p
+            // the covariance projected onto it, u the in-plane direction to the centre. For a
+            // node wholly beyond the window in rho (rho of any of its points >= the centre's -
+            // the diagonal) and small as seen from x.
+            const Agg& g = aggs_[k];
+            const Vec3 v = g.centre - x;
+            const double dc2 = dot(v, v), diag = std::sqrt(double(nd.diag2));
+            const double rho = rho_of(g.centre);
+            if (rho - diag > outer && double(nd.diag2) < angle2 * dc2) {
+                const Vec3 lat = v - nx * dot(v, nx);
+                const double ll = length(lat);
+                const Vec3 u = ll > 0 ? lat * (1.0 / ll) : Vec3(0, 0, 0);
+                const double* C = g.cov;
+                auto quad = [C](const Vec3& a) {
+                    return a.x * (C[0] * a.x + C[3] * a.y + C[4] * a.z) + a.y * (C[3] * a.x + C[1] * a.y + C[5] * a.z) +
+                           a.z * (C[4] * a.x + C[5] * a.y + C[2] * a.z);
+                };
+                const double uCu = quad(u), nCn = quad(nx);
+                const double a = 0.5 * uCu, b = 0.5 * std::max(0.0, C[0] + C[1] + C[2] - nCn - uCu) / rho;
+                Rgb f0, f1, f2;
+                transmit.eval(rho, &f0, &f1, &f2);
                 sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
                 sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
                 sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
@@ -978,18 +1020,21 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& oppos
     return sum;
 }
 
-Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile& opposite, const Vec3& x,
+Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x,
                                          const Vec3& nx, double d, double r0, double h, const Rgb& near_opposite) const {
     Rgb sum, near_flux;
     double near_area = 0;
     for (const SurfacePoint& s : points_) {
-        const double r = length(x - s.p);
+        const Vec3 v = x - s.p;
+        const double r = length(v);
         if (dot(s.n, nx) > 0) {
             const double w = window(r, r0, h);
             if (w > 0) sum += same.exact(r) * s.irradiance * (s.area * w);
         } else {
-            const double w = window(std::sqrt(std::max(0.0, r * r - d * d)), r0, h);
-            sum += opposite.exact(r) * s.irradiance * (s.area * w);
+            const double vn = std::min(std::fabs(dot(v, nx)), d);
+            const double rho = std::sqrt(std::max(0.0, r * r - vn * vn));
+            const double w = window(rho, r0, h);
+            sum += transmit.exact(rho) * s.irradiance * (s.area * w);
             near_area += (1.0 - w) * s.area;
             near_flux += s.irradiance * ((1.0 - w) * s.area);
         }
@@ -1411,7 +1456,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     std::size_t visited = 0;
     Rgb near_same, near_opposite;
     slab.near(h, &near_same, &near_opposite);
-    Rgb m = cloud.far_exitance_sided(*slab.p.same, *slab.p.opposite, x, n, slab.p.d, r0, h, settings_.max_angle,
+    Rgb m = cloud.far_exitance_sided(*slab.p.same, *slab.p.transmit, x, n, slab.p.d, r0, h, settings_.max_angle,
                                      near_opposite, &visited);
     LookupCounter& c = thread_counter();
     bump(c.lookups, 1);

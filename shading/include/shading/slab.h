@@ -55,13 +55,12 @@ struct SlabChannel {
 };
 
 // The three channels of one slab, and the two radial profiles a lookup integrates over the
-// point cloud: R(s) at 3-D distance s on the same face, and T(sqrt(max(0, s^2 - d^2))) on the
-// opposite face (the lateral distance of a flat slab; T(0) inside s < d), and T(rho) itself
-// (its near-field integral).
+// point cloud: R(s) at 3-D distance s on the same face, T(rho) of the lateral distance rho on
+// the opposite face (PointCloud::far_exitance_sided).
 struct SlabProfiles {
     double d = 0;
     Rgb R_total, T_total;
-    std::shared_ptr<const RdProfile> same, opposite, transmit;
+    std::shared_ptr<const RdProfile> same, transmit;
 };
 SlabProfiles make_slab_profiles(const Dipole& dipole, double d);
 

@@ -180,20 +180,20 @@ public:
     // The same sum over every point with the profile's exact callable, no aggregation and no
     // cutoff: the reference.
     Rgb far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h) const;
-    // Thin geometry (shading/DIPOLE.md, "Thin geometry"): M(x) at a point of unit normal nx
-    // and thickness d, less the same face's near field: the points whose normal faces the
-    // same way as nx (dot > 0) integrated with `same` (of the 3-D distance) and the window, as
-    // far_exitance does; the points of the opposite face (dot <= 0) with `opposite` (of the
-    // 3-D distance s) and the window in their lateral distance rho = sqrt(s^2 - d^2), their
-    // part inside the window as near_opposite (the integral of (1 - w) T) times the
-    // (1 - w)-weighted mean of their E_t. A node is aggregated only when its normal cone lies
-    // wholly on one side (a node holding both faces of a thin sheet is opened). Nodes beyond
-    // each profile's r_max are skipped.
-    Rgb far_exitance_sided(const RdProfile& same, const RdProfile& opposite, const Vec3& x, const Vec3& nx, double d,
+    // Thin geometry (shading/DIPOLE.md section 6a): M(x) at a point of unit normal nx and
+    // thickness d, less the same face's near field: the points whose normal faces the same way
+    // as nx (dot > 0) integrated with `same` (of the 3-D distance) and the window, as
+    // far_exitance does; the points of the opposite face (dot <= 0) with `transmit`, T of the
+    // lateral distance rho = sqrt(s^2 - min(|v.nx|, d)^2) (v = x - p, s = |v|: on a flat slab's
+    // far face sqrt(s^2 - d^2)), with the window in rho, their part inside it as near_opposite
+    // (the integral of (1 - w) T) times the (1 - w)-weighted mean of their E_t. Nodes are
+    // aggregated per side: by their normal cone (or, for a one-sheeted node crossing the
+    // plane of nx, its axis); a node holding both faces of a sheet is opened.
+    Rgb far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx, double d,
                            double r0, double h, double max_angle, const Rgb& near_opposite,
                            std::size_t* visited = nullptr) const;
     // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
-    Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& opposite, const Vec3& x, const Vec3& nx,
+    Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                  double d, double r0, double h, const Rgb& near_opposite) const;
 
     // The window: 0 below r0 - h, 1 above r0 + h, between them the C2 smootherstep
