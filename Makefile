@@ -157,9 +157,14 @@ fork: all
 
 # ---------------------------------------------------------------- ready BRDF tables
 BRDFTOOL   := $(SHADING_BUILD)/brdftool
+SSTOOL     := $(SHADING_BUILD)/sstool
 BRDF_DATA  := $(BUILD)/brdf_data
-brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt into build/brdf_data
+# The exact subsurface profiles (shading/DIPOLE.md "Profile tables"): rebuilt only when missing or
+# made by another generator version or settings (sstool build --if-stale), a few minutes once.
+SS_PROFILES := $(BRDF_DATA)/subsurface_profiles.ssp
+brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt and the exact subsurface profiles into build/brdf_data
 	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)
+	$(SSTOOL) build --if-stale --threads $(JOBS) -o $(SS_PROFILES)
 
 # ---------------------------------------------------------------- python harness
 # The harness is a package (pyproject.toml: pinned dependencies, console scripts); the venv
@@ -185,12 +190,13 @@ test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q
 
-bench: all venv ## Trace-time ratios (fork/stock, table/phong, the 25-sphere grid, every model, dipole/stock subsurface), glossy noise, image errors
+bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-sphere grid, every model, dipole/stock subsurface, exact/dipole profile), glossy noise, profile table build times, image errors
 	$(PY) -m harness.reports.bench
 	$(PY) -m harness.reports.glossy_noise
 	$(PY) -m harness.reports.table_error
 	$(PY) -m harness.reports.model_bench
 	$(PY) -m harness.reports.dipole_bench
+	$(PY) -m harness.reports.ss_bench
 
 dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg.png and an error table
 	$(PY) -m harness.reports.dg_compare
@@ -202,7 +208,7 @@ dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg
 FUZZ_APT_PACKAGES := clang libclang-rt-dev
 FUZZ_BUILD     := $(BUILD)/fuzz
 FUZZ_SECONDS   ?= 60
-FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz
+FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz ssp_fuzz
 SAN_FLAGS      := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -g
 SANITIZE_BUILD := $(BUILD)/sanitize
 TSAN_BUILD     := $(BUILD)/tsan

@@ -4,12 +4,14 @@
 #
 #   PREFIX/bin/povray-brdf                the fork (never named `povray`: stock stays stock)
 #   PREFIX/bin/brdftool                   tabulate, convert, fit, plot ... BRDF tables
+#   PREFIX/bin/sstool                     build, inspect, evaluate the exact subsurface profile tables
 #   PREFIX/etc/povray-brdf/povray.conf    I/O restrictions for the installed layout
 #   PREFIX/etc/povray-brdf/povray.ini     library paths: the two directories below
 #   PREFIX/share/povray-brdf/include      POV-Ray 3.7.0.10's standard include files and ours
-#   PREFIX/share/povray-brdf/brdf_data    the ready tables of `make brdf-data`
+#   PREFIX/share/povray-brdf/brdf_data    the ready tables of `make brdf-data` (.brdf, and the exact
+#                                         subsurface profiles subsurface_profiles.ssp)
 #   PREFIX/share/povray-brdf/doc          README, docs/, shading/MODELS.md, DIPOLE.md, brdf_data/README.md
-#   PREFIX/share/man/man1                 povray-brdf.1.gz, brdftool.1.gz (from docs/man/)
+#   PREFIX/share/man/man1                 povray-brdf.1.gz, brdftool.1.gz, sstool.1.gz (from docs/man/)
 #   PREFIX/share/povray-brdf/install-manifest.txt   every installed file (`make uninstall`)
 #
 # POV-Ray compiles its configuration directory into the binary (POVCONFDIR, from configure's
@@ -45,7 +47,7 @@ for f in "$povdir/vfe/unix/unixoptions.cpp" "$povdir/vfe/libvfe.a" "$povdir/sour
   if [ "$f" -nt "$bin_src" ]; then die "the fork's build is out of date ($f is newer than build/bin/povray-brdf): run make"; fi
 done
 shopt -s nullglob
-tables=("$top"/build/brdf_data/*.brdf)
+tables=("$top"/build/brdf_data/*.brdf "$top"/build/brdf_data/*.ssp)
 [ ${#tables[@]} -gt 0 ] || die "no tables in build/brdf_data: run make brdf-data"
 
 etc=$prefix/etc/povray-brdf
@@ -97,6 +99,7 @@ put() {  # MODE SRC DST: install one file (a rename, so a running povray-brdf is
 }
 put 755 "$tmp/povray-brdf" "$bindir/povray-brdf"
 put 755 "$tool_src" "$bindir/brdftool"
+put 755 "$top/build/shading/sstool" "$bindir/sstool"
 for f in "$povdir"/distribution/include/*; do
   [ -f "$f" ] && put 644 "$f" "$share/include/$(basename "$f")"
 done
@@ -120,4 +123,4 @@ install -D -m 644 "$tmp/manifest" "$D$share/install-manifest.txt"
 
 echo "install: ${#manifest[@]} files under $D$prefix"
 echo "install: $D$bindir/povray-brdf reads $etc/povray.{conf,ini}; tables in $share/brdf_data, includes in $share/include"
-echo "install: man povray-brdf, man brdftool (in $prefix/share/man/man1; add $prefix/share/man to MANPATH if man does not find them)"
+echo "install: man povray-brdf, man brdftool, man sstool (in $prefix/share/man/man1; add $prefix/share/man to MANPATH if man does not find them)"

@@ -28,7 +28,11 @@ box {{ <-25, -25, -15>, <25, 25, 0>
   texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} {extra} }} }} }}
 box {{ <-100, -100, 5>, <0, 100, 5.01> no_image texture {{ pigment {{ rgb 0 }} }} }}
 """
-DIPOLE = f"sigma_s_prime {SIGMA_S_PRIME} sigma_a {SIGMA_A} ior {ETA} mm_per_unit 1 sample_spacing 0.25"
+# `profile dipole single_scatter on`: these tests check the hierarchical evaluation against the
+# dipole's closed form plus single scattering (the finish's default is the exact profile, whose
+# own checks are tests/test_ss_profiles.py).
+DIPOLE = (f"sigma_s_prime {SIGMA_S_PRIME} sigma_a {SIGMA_A} ior {ETA} mm_per_unit 1 sample_spacing 0.25 "
+          "profile dipole single_scatter on")
 
 
 def slab(fork, dipole=DIPOLE, extra="", threads=1, width=160):

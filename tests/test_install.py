@@ -64,9 +64,10 @@ def test_layout(prefix):
               "share/povray-brdf/include/brdf_metals.inc", "share/povray-brdf/include/colors.inc",
               "share/povray-brdf/brdf_data/gold.brdf", "share/povray-brdf/doc/README.md",
               "share/povray-brdf/doc/shading/MODELS.md", "share/povray-brdf/doc/docs/fitting.md",
-              "share/man/man1/povray-brdf.1.gz", "share/man/man1/brdftool.1.gz"):
+              "share/man/man1/povray-brdf.1.gz", "share/man/man1/brdftool.1.gz", "share/man/man1/sstool.1.gz",
+              "bin/sstool", "share/povray-brdf/brdf_data/subsurface_profiles.ssp"):
         assert (prefix / f).is_file(), f
-    for page in ("povray-brdf", "brdftool"):  # `man` finds them under PREFIX/share/man
+    for page in ("povray-brdf", "brdftool", "sstool"):  # `man` finds them under PREFIX/share/man
         shown = subprocess.run(["man", "-M", str(prefix / "share" / "man"), page], capture_output=True, text=True,
                                env={"MANWIDTH": "80", "PATH": "/usr/bin:/bin", "MAN_DISABLE_SECCOMP": "1"})
         assert shown.returncode == 0 and shown.stdout.startswith(page.upper()), shown.stderr
@@ -79,6 +80,9 @@ def test_layout(prefix):
     out = subprocess.run([str(prefix / "bin" / "brdftool"), "info", str(share / "brdf_data" / "gold.brdf")],
                          capture_output=True, text=True)
     assert out.returncode == 0 and "isotropic" in out.stdout
+    out = subprocess.run([str(prefix / "bin" / "sstool"), "info", str(share / "brdf_data" / "subsurface_profiles.ssp")],
+                         capture_output=True, text=True)
+    assert out.returncode == 0 and "exact subsurface profiles" in out.stdout
 
 
 def test_installed_binary_renders_with_installed_conf(prefix, fork, tmp_path):

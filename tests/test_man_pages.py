@@ -11,7 +11,7 @@ import pytest
 
 from harness.core.paths import REPO_ROOT, brdftool
 
-PAGES = {name: REPO_ROOT / "docs" / "man" / f"{name}.1" for name in ("povray-brdf", "brdftool")}
+PAGES = {name: REPO_ROOT / "docs" / "man" / f"{name}.1" for name in ("povray-brdf", "brdftool", "sstool")}
 
 
 def plain(page: str) -> str:

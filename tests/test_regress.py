@@ -116,7 +116,7 @@ def test_manifest_and_goldens_are_consistent():
     text = "\n".join(s.pov.read_text() for s in scenes)
     for kw in ("brdf_table", "brdf_model", "interpolate 0", "interpolate 1", "use_color", "scale <",
                "direction", "samples", "dipole {", "sigma_s_prime", "sigma_s <", "anisotropy", "sigma_a",
-               "ior", "mm_per_unit", "sample_spacing", "error_bound", "single_scatter"):
+               "ior", "mm_per_unit", "sample_spacing", "error_bound", "single_scatter", "profile dipole"):
         assert kw in text, kw
     for family in ("lambert", "phong_pov", "blinn_pov", "phong_normalized", "microfacet", "ward",
                    "oren_nayar", "lafortune"):

@@ -54,7 +54,7 @@ def test_monte_carlo_profile_is_recovered_within_the_stated_interval(mc_profile)
         assert lo <= truth <= hi, (key, truth, iv[key], p.stdout)
         assert (hi - lo) / 2 < 0.3 * v, (key, iv[key])  # an interval that says something
     assert "dipole model +-" in p.stdout and "Rd in 1/mm^2 (absolute), with standard errors" in p.stdout
-    assert re.search(r"^finish \{ dipole \{ sigma_s_prime [0-9.]+ sigma_a [0-9.]+ ior 1\.3 \} \}", p.stdout, re.MULTILINE)
+    assert re.search(r"^finish \{ dipole \{ sigma_s_prime [0-9.]+ sigma_a [0-9.]+ ior 1\.3 profile dipole \} \}", p.stdout, re.MULTILINE)
 
 
 def test_units_are_converted(mc_profile, tmp_path):

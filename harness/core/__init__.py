@@ -7,5 +7,6 @@
 * :mod:`~harness.core.exr`       EXR read/write, PNG previews;
 * :mod:`~harness.core.compare`   error statistics and error-map PNGs;
 * :mod:`~harness.core.brdf_io`   ``.brdf`` tables in numpy;
-* :mod:`~harness.core.tables`    ``brdftool`` runs and the tables they make, cached.
+* :mod:`~harness.core.tables`    ``brdftool`` runs and the tables they make, cached;
+* :mod:`~harness.core.sstool`    ``sstool`` runs: exact subsurface profile tables and the library's Monte Carlo.
 """

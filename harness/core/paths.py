@@ -170,6 +170,22 @@ def ready_tables_dir() -> Path:
     return fork.parent.parent / "share" / "povray-brdf" / "brdf_data"
 
 
+def sstool() -> Path:
+    """The shading library's ``sstool`` (exact subsurface profiles; built by ``make``; ``SSTOOL``
+    overrides)."""
+    path = Path(os.environ.get("SSTOOL") or REPO_ROOT / "build" / "shading" / "sstool")
+    return _check_executable(path, "sstool", "SSTOOL", "Build it first with `make shading`.")
+
+
+#: The exact subsurface profile tables `make brdf-data` builds (``SS_PROFILES`` overrides).
+def ss_profiles() -> Path:
+    """The shipped exact-profile tables, ``build/brdf_data/subsurface_profiles.ssp``."""
+    path = Path(os.environ.get("SS_PROFILES") or REPO_ROOT / "build" / "brdf_data" / "subsurface_profiles.ssp")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: the exact subsurface profiles are missing; `make brdf-data` builds them")
+    return path
+
+
 def include_dirs() -> list[Path]:
     """Include directories to pass with ``+L``: ``POVRAY_INCLUDE`` entries, then the standard one.
 

@@ -12,6 +12,7 @@ compared through shared numbers (tests on both sides assert the same published v
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -20,7 +21,7 @@ import numpy as np
 __all__ = [
     "fresnel_dielectric", "refracted_cos", "fdr_fit", "fdr_exact", "henyey_greenstein",
     "rd_total_closed", "Dipole", "single_scatter_brdf", "single_scatter_albedo_normal",
-    "chandrasekhar_h", "plane_albedo_isotropic",
+    "chandrasekhar_h", "chandrasekhar_h_iterated", "plane_albedo_isotropic", "plane_radiance_isotropic",
 ]
 
 
@@ -238,12 +239,23 @@ def single_scatter_albedo_normal(albedo: float, g: float, eta: float, n: int = 2
 # ---------------------------------------------------------------------------------------------
 # Exact transport: semi-infinite isotropic medium, index-matched boundary (Chandrasekhar 1950)
 
+@functools.lru_cache(maxsize=8)
+def _gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and weights on [-1, 1], made once (scipy's roots_legendre: numpy's leggauss is O(n^3),
+    seconds for n = 4000)."""
+    from scipy.special import roots_legendre
+    x, w = roots_legendre(n)
+    x.setflags(write=False)
+    w.setflags(write=False)
+    return x, w
+
+
 def chandrasekhar_h(mu, albedo: float, n_theta: int = 4000):
     """Chandrasekhar's H-function for isotropic scattering, by its explicit integral form
     ln H(mu) = -(mu/pi) int_0^{pi/2} ln(1 - albedo theta cot theta) / (cos^2 + mu^2 sin^2) dtheta
     (Gauss-Legendre in theta)."""
     mu = np.atleast_1d(np.asarray(mu, dtype=float))
-    x, w = np.polynomial.legendre.leggauss(n_theta)
+    x, w = _gauss_legendre(n_theta)
     th = 0.25 * math.pi * (x + 1.0)
     w = 0.25 * math.pi * w
     tc = th / np.tan(th)
@@ -252,12 +264,43 @@ def chandrasekhar_h(mu, albedo: float, n_theta: int = 4000):
     return np.exp(-(mu / math.pi) * np.sum(w * lg / den, axis=1))
 
 
+def chandrasekhar_h_iterated(mu, albedo: float, n: int = 128, iterations: int = 5000) -> np.ndarray:
+    """The same H-function by another method: fixed-point iteration of Chandrasekhar's integral
+    equation 1/H(mu) = sqrt(1 - albedo) + (albedo/2) int_0^1 mu' H(mu') / (mu + mu') dmu'
+    (the form that converges for albedo -> 1), Gauss-Legendre in mu', then the equation itself
+    evaluated at the requested mu. Used to check :func:`chandrasekhar_h`."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x = 0.5 * (x + 1.0)
+    w = 0.5 * w
+    h = np.ones(n)
+    s = math.sqrt(max(0.0, 1.0 - albedo))
+    kernel = 0.5 * albedo * (w * x)[None, :] / (x[:, None] + x[None, :])
+    for _ in range(iterations):
+        new = 1.0 / (s + kernel @ h)
+        if np.max(np.abs(new - h)) < 1e-14:
+            h = new
+            break
+        h = new
+    mu = np.atleast_1d(np.asarray(mu, dtype=float))
+    return 1.0 / (s + 0.5 * albedo * np.sum(w * x * h / (mu[:, None] + x[None, :]), axis=1))
+
+
 def plane_albedo_isotropic(albedo: float, mu0: float = 1.0) -> float:
     """Exact total reflectance of a semi-infinite isotropically scattering medium with no index
     mismatch, collimated incidence at cosine mu0: 1 - H(mu0) sqrt(1 - albedo)."""
     if albedo >= 1.0:
         return 1.0
     return float(1.0 - chandrasekhar_h(mu0, albedo)[0] * math.sqrt(1.0 - albedo))
+
+
+def plane_radiance_isotropic(albedo: float, mu: float, mu0: float = 1.0) -> float:
+    """Exact radiance reflected by a semi-infinite isotropically scattering medium with no index
+    mismatch under a collimated beam at cosine mu0, seen at cosine mu (any azimuth), as
+    pi L / E with E the irradiance of the surface (Chandrasekhar 1950):
+    pi L / E = albedo H(mu) H(mu0) / (4 (mu + mu0)); normal incidence and view: albedo H(1)^2 / 8.
+    Single scattering alone is albedo / (4 (mu + mu0))."""
+    h = chandrasekhar_h(np.array([mu, mu0]), albedo)
+    return float(albedo * h[0] * h[1] / (4.0 * (mu + mu0)))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -1,26 +1,40 @@
-"""Monte Carlo photon migration in a semi-infinite homogeneous medium: the independent reference
-for the dipole model (shading/include/shading/dipole.h, harness/reference/dipole_ref.py).
+"""Monte Carlo photon migration in a homogeneous layer (semi-infinite or a slab): the independent
+reference for the dipole (shading/include/shading/dipole.h, harness/reference/dipole_ref.py) and for
+the exact profiles of the library (shading/include/shading/ss_profile.h), sharing no code with either.
 
-Model (the dipole's own assumptions, and nothing of its mathematics):
-  * medium z > 0 (z is depth), flat boundary at z = 0, relative index eta = n_medium / n_outside;
-  * a pencil beam enters at the origin along the normal. The incident Fresnel reflection is
-    NOT part of the tallies: results are per unit power ENTERING the medium, which is how the
-    dipole's Rd and Jensen's S_d = (1/pi) Ft Rd Ft are normalised (Ft(wi) is applied outside
-    Rd). The specular part ((eta-1)/(eta+1))^2 is reported separately in MCResult.specular;
-  * exponential free paths with sigma_t = sigma_s + sigma_a, Henyey-Greenstein scattering;
-  * absorption by weight (implicit capture: w *= albedo at each interaction) and Russian
-    roulette below `roulette_weight` (survival probability `roulette_survival`), which keeps the
-    estimator unbiased and bounds path lengths for albedo up to 0.9999;
-  * at the boundary, exact unpolarised Fresnel from inside (relative index 1/eta, total internal
+Model (the assumptions of both, and nothing of their mathematics):
+  * medium 0 <= z <= thickness (z is depth; thickness = inf: semi-infinite), flat faces, the same
+    relative index eta = n_medium / n_outside at both;
+  * a pencil beam enters at the origin; its outside direction makes cos_incidence with the normal
+    (in the xz plane) and is refracted by Snell's law. The incident Fresnel reflection is NOT part
+    of the tallies: results are per unit power ENTERING the medium, which is how the dipole's Rd and
+    Jensen's S_d = (1/pi) Ft Rd Ft are normalised (Ft(wi) is applied outside Rd). The specular part
+    ((eta-1)/(eta+1))^2 (normal incidence) is reported separately in MCResult.specular;
+  * exponential free paths with sigma_t = sigma_s + sigma_a, Henyey-Greenstein scattering at any g;
+  * absorption by weight (implicit capture: w *= albedo at each interaction, one albedo per run) and
+    Russian roulette below `roulette_weight` (survival probability `roulette_survival`), which
+    keeps the estimator unbiased and bounds path lengths for albedo up to 0.9999;
+  * at a face, exact unpolarised Fresnel from inside (relative index 1/eta, total internal
     reflection beyond the critical angle). The photon is split deterministically: the
     transmitted fraction of its weight is tallied as exitance at the crossing point, the
     reflected fraction continues along the mirrored direction (no extra random numbers);
-  * tallies: total Rd, split into single scattering (exactly one interaction) and multiple
-    scattering (two or more), and radial Rd(r) per unit area in annular bins, per unit entering
-    power. Standard errors come from per-photon sums (each photon is one independent sample).
+  * tallies, per unit entering power: reflectance through the top face and transmittance through
+    the bottom face, each split into unscattered (ballistic), single scattering (exactly one
+    interaction) and multiple scattering (two or more), and radial profiles per unit area in
+    annular bins. Standard errors come from per-photon sums (each photon is one independent sample);
+  * radiance (optional `views`): for each outside direction leaving the top face, the radiance of
+    the surface under UNIFORM illumination (by translation invariance the pencil beam's response
+    integrated over the surface) per unit entering flux density, by the next-event (point)
+    estimator: every interaction of weight w at depth z adds w p(u . w') exp(-z/mu') / mu' toward
+    the inside direction w' that refracts into the view, times Ft(mu') / eta^2 on the way out. Exact
+    in expectation and of low variance, at exact directions (no angular bins). pi L / E_entering is
+    then `radiance_*`; for eta = 1, isotropic scattering and normal incidence the total is
+    Chandrasekhar's omega H(mu) H(1) / (4 (mu + 1)) (dipole_ref.plane_radiance_isotropic).
 
 Vectorised over photons with numpy, seeded with numpy's PCG64 (`numpy.random.default_rng`), so a
-given (parameters, seed, n_photons) gives bit-identical results on the same numpy version.
+given (parameters, seed, n_photons) gives bit-identical results on the same numpy version; the
+radiance estimator and the slab draw no extra random numbers (a semi-infinite run without views is
+the same sequence as before they existed).
 
 Command line:  python -m harness.reference.mc_subsurface --table   (dipole vs MC over albedo and eta)
 """
@@ -38,7 +52,7 @@ import numpy as np
 from harness.core.progress import bar as progress_bar
 from harness.reference import dipole_ref
 
-__all__ = ["MCResult", "simulate", "default_r_edges", "table", "main"]
+__all__ = ["MCResult", "simulate", "default_r_edges", "view_directions", "table", "main"]
 
 
 @dataclass
@@ -48,7 +62,7 @@ class MCResult:
     sigma_a: float
     g: float
     eta: float
-    total: float            # Rd: exiting power / entering power
+    total: float            # Rd: exiting power / entering power (top face, all orders >= 1)
     total_err: float        # one standard error
     single: float           # part of `total` after exactly one scattering event
     single_err: float
@@ -62,6 +76,31 @@ class MCResult:
     interactions: int       # photon-interaction events simulated (cost measure)
     seconds: float
     extra: dict = field(default_factory=dict)
+    # Slabs (thickness < inf) and oblique incidence; zeros for a semi-infinite medium.
+    thickness: float = math.inf
+    cos_incidence: float = 1.0
+    r_ballistic: float = 0.0          # left through the top without scattering (bounced off the bottom)
+    t_ballistic: float = 0.0          # through the bottom without scattering
+    t_single: float = 0.0
+    t_single_err: float = 0.0
+    t_multiple: float = 0.0
+    t_multiple_err: float = 0.0
+    rd_r_multiple_err: np.ndarray | None = None
+    td_r: np.ndarray | None = None    # transmitted exitance per unit area (bottom face), all orders >= 1
+    td_r_err: np.ndarray | None = None
+    td_r_multiple: np.ndarray | None = None
+    td_r_multiple_err: np.ndarray | None = None
+    # Radiance at `views` (outside unit vectors, z > 0), pi L / E_entering, uniform illumination.
+    views: np.ndarray | None = None
+    radiance_single: np.ndarray | None = None
+    radiance_single_err: np.ndarray | None = None
+    radiance_multiple: np.ndarray | None = None
+    radiance_multiple_err: np.ndarray | None = None
+
+    @property
+    def t_total(self) -> float:
+        """Diffuse transmittance (orders >= 1)."""
+        return self.t_single + self.t_multiple
 
 
 def default_r_edges(sigma_t_prime: float) -> np.ndarray:
@@ -70,9 +109,23 @@ def default_r_edges(sigma_t_prime: float) -> np.ndarray:
     return np.concatenate([[0.0], np.geomspace(0.01, 100.0, 61)]) * mfp
 
 
+def view_directions(cos_o, phi_deg=0.0) -> np.ndarray:
+    """Outside view directions (n, 3) from cosines with the normal and azimuths (degrees, 0 = the
+    plane of incidence on the side the beam travels to)."""
+    c = np.atleast_1d(np.asarray(cos_o, dtype=float))
+    p = np.radians(np.broadcast_to(np.asarray(phi_deg, dtype=float), c.shape))
+    s = np.sqrt(np.maximum(0.0, 1.0 - c * c))
+    return np.stack([s * np.cos(p), s * np.sin(p), c], axis=-1)
+
+
 def _fresnel_out(cos_i: np.ndarray, inv_eta: float) -> np.ndarray:
     """Reflectance for light inside hitting the boundary (relative index 1/eta)."""
     return dipole_ref.fresnel_dielectric(cos_i, inv_eta)
+
+
+def _hg(cos_t: np.ndarray, g: float) -> np.ndarray:
+    """Henyey-Greenstein density per steradian (written out here, not shared)."""
+    return (1.0 - g * g) / (4.0 * math.pi * np.power(1.0 + g * g - 2.0 * g * cos_t, 1.5))
 
 
 def _scatter(ux, uy, uz, g, rng):
@@ -103,8 +156,10 @@ def _scatter(ux, uy, uz, g, rng):
 def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
              n_photons: int = 100_000, seed: int = 1, r_edges: np.ndarray | None = None,
              roulette_weight: float = 1e-3, roulette_survival: float = 0.1,
-             max_iterations: int = 10_000_000, progress: bool = False) -> MCResult:
-    """Simulate `n_photons` photons entering at the origin along the normal; see module doc.
+             max_iterations: int = 10_000_000, thickness: float = math.inf,
+             cos_incidence: float = 1.0, views: np.ndarray | None = None, progress: bool = False) -> MCResult:
+    """Simulate `n_photons` photons entering at the origin; see module doc. `views`: outside
+    directions (n, 3) for the radiance estimator (:func:`view_directions`).
 
     ``progress``: a bar of the photons finished (absorbed or escaped), with the time left,
     on stderr (:mod:`harness.core.progress`)."""
@@ -114,6 +169,10 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
         raise ValueError(f"g = {g}: need -1 < g < 1")
     if not eta > 0:
         raise ValueError(f"eta = {eta}: need > 0")
+    if not thickness > 0:
+        raise ValueError(f"thickness = {thickness}: need > 0 (inf: semi-infinite)")
+    if not (0.0 < cos_incidence <= 1.0):
+        raise ValueError(f"cos_incidence = {cos_incidence}: need (0, 1]")
     t0 = time.perf_counter()
     rng = np.random.default_rng(seed)
     sigma_t = sigma_s + sigma_a
@@ -123,24 +182,62 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
     r_edges = np.asarray(r_edges, dtype=float)
     nb = r_edges.size - 1
     inv_eta = 1.0 / eta
+    slab = math.isfinite(thickness)
+    d = float(thickness)
+
+    # Radiance: the inside directions (MC frame, z = depth, moving up: uz < 0) that refract into
+    # the views, their inside cosines and the exit factor Ft / eta^2.
+    nv = 0
+    if views is not None:
+        views = np.atleast_2d(np.asarray(views, dtype=float))
+        if views.shape[1] != 3 or not (views[:, 2] > 0).all():
+            raise ValueError("views: need (n, 3) outside directions with z > 0")
+        views = views / np.linalg.norm(views, axis=1)[:, None]
+        nv = views.shape[0]
+        mu_in = dipole_ref.refracted_cos(views[:, 2], eta)  # outside -> inside: relative index eta
+        win = np.stack([views[:, 0] / eta, views[:, 1] / eta, -mu_in], axis=1)
+        exit_w = (1.0 - dipole_ref.fresnel_dielectric(views[:, 2], eta)) / eta**2
 
     n = int(n_photons)
     ids = np.arange(n)
     x = np.zeros(n)
     y = np.zeros(n)
     z = np.zeros(n)
-    ux = np.zeros(n)
+    sin_t = math.sqrt(max(0.0, 1.0 - cos_incidence * cos_incidence)) / eta
+    ux = np.full(n, sin_t)
     uy = np.zeros(n)
-    uz = np.ones(n)
+    uz = np.full(n, math.sqrt(max(0.0, 1.0 - sin_t * sin_t)))
     w = np.ones(n)
     order = np.zeros(n, dtype=np.int64)  # interactions so far
 
-    per_single = np.zeros(n)   # per-photon exiting weight after one interaction
-    per_multi = np.zeros(n)    # ... after two or more
-    bins_all = np.zeros(nb)
-    bins_all_sq = np.zeros(nb)
-    bins_multi = np.zeros(nb)
+    per = {k: np.zeros(n) for k in ("rs", "rm", "ts", "tm")}  # per-photon exiting weight
+    r_ball = 0.0
+    t_ball = 0.0
+    bins = {k: np.zeros(nb) for k in ("r", "r2", "rm", "rm2", "t", "t2", "tm", "tm2")}
+    rad_s = np.zeros((n, nv))
+    rad_m = np.zeros((n, nv))
     interactions = 0
+
+    def tally(face, hx, hy, wo_, o, hid):
+        nonlocal r_ball, t_ball
+        ball = o == 0
+        if ball.any():
+            if face == "r":
+                r_ball += float(wo_[ball].sum())
+            else:
+                t_ball += float(wo_[ball].sum())
+        r = np.hypot(hx, hy)
+        b = np.searchsorted(r_edges, r, side="right") - 1
+        ok = (b >= 0) & (b < nb) & ~ball
+        bins[face] += np.bincount(b[ok], weights=wo_[ok], minlength=nb)
+        bins[face + "2"] += np.bincount(b[ok], weights=wo_[ok] ** 2, minlength=nb)
+        mo = ok & (o >= 2)
+        bins[face + "m"] += np.bincount(b[mo], weights=wo_[mo], minlength=nb)
+        bins[face + "m2"] += np.bincount(b[mo], weights=wo_[mo] ** 2, minlength=nb)
+        one = o == 1
+        many = o >= 2
+        per[face + "s"][hid[one]] += wo_[one]    # ids are unique within one step
+        per[face + "m"][hid[many]] += wo_[many]
 
     it = 0
     bar = progress_bar(n, "Monte Carlo", unit="photon", enabled=progress)
@@ -150,33 +247,28 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
         s = -np.log1p(-rng.random(ids.size)) / sigma_t  # free path; 1 - U in (0, 1]
         up = uz < 0.0
         with np.errstate(divide="ignore"):
-            d_b = np.where(up, z / np.where(up, -uz, 1.0), np.inf)  # distance to the boundary
+            d_b = np.where(up, z / np.where(up, -uz, 1.0), np.inf)  # distance to the top face
+            if slab:
+                down = uz > 0.0
+                d_b = np.where(down, (d - z) / np.where(down, uz, 1.0), d_b)
         hit = s >= d_b
 
-        # Photons reaching the boundary: move there, split by Fresnel.
+        # Photons reaching a face: move there, split by Fresnel.
         if hit.any():
             hx = x[hit] + ux[hit] * d_b[hit]
             hy = y[hit] + uy[hit] * d_b[hit]
-            fr = _fresnel_out(-uz[hit], inv_eta)
+            top = uz[hit] < 0.0
+            fr = _fresnel_out(np.abs(uz[hit]), inv_eta)
             w_out = w[hit] * (1.0 - fr)
             o = order[hit]
+            hid = ids[hit]
             out = w_out > 0.0
-            if out.any():
-                r = np.hypot(hx[out], hy[out])
-                b = np.searchsorted(r_edges, r, side="right") - 1
-                wo_ = w_out[out]
-                ok = (b >= 0) & (b < nb)
-                bins_all += np.bincount(b[ok], weights=wo_[ok], minlength=nb)
-                bins_all_sq += np.bincount(b[ok], weights=wo_[ok] ** 2, minlength=nb)
-                mo = ok & (o[out] >= 2)
-                bins_multi += np.bincount(b[mo], weights=wo_[mo], minlength=nb)
-                hid = ids[hit][out]
-                oo = o[out]
-                per_single[hid[oo == 1]] += wo_[oo == 1]   # ids unique within one step
-                per_multi[hid[oo >= 2]] += wo_[oo >= 2]
+            for face, sel in (("r", out & top), ("t", out & ~top)):
+                if sel.any():
+                    tally(face, hx[sel], hy[sel], w_out[sel], o[sel], hid[sel])
             x[hit] = hx
             y[hit] = hy
-            z[hit] = 0.0
+            z[hit] = np.where(top, 0.0, d)
             uz[hit] = -uz[hit]
             w[hit] = w[hit] * fr
 
@@ -190,6 +282,17 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
             w[m] *= albedo
             order[m] += 1
             interactions += int(m.sum())
+            if nv:
+                # Next-event estimate of the radiance toward each view: scattered into the inside
+                # direction that refracts into it, unattenuated up to the top face.
+                zm = z[m][:, None]
+                cosp = ux[m][:, None] * win[None, :, 0] + uy[m][:, None] * win[None, :, 1] + uz[m][:, None] * win[None, :, 2]
+                c = w[m][:, None] * _hg(np.clip(cosp, -1.0, 1.0), g) * np.exp(-zm / mu_in[None, :]) / mu_in[None, :]
+                c = c * exit_w[None, :] * math.pi
+                first = order[m] == 1
+                mid = ids[m]
+                rad_s[mid[first]] += c[first]          # ids are unique within one step
+                rad_m[mid[~first]] += c[~first]
             ux[m], uy[m], uz[m] = _scatter(ux[m], uy[m], uz[m], g, rng)
 
         # Russian roulette on light photons; drop dead ones.
@@ -205,22 +308,44 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
 
     bar.update(n - ids.size - bar.n)
     bar.close()
-    per_total = per_single + per_multi
     sq = math.sqrt(n)
     area = math.pi * (r_edges[1:] ** 2 - r_edges[:-1] ** 2)
-    return MCResult(
-        n_photons=n, sigma_s=sigma_s, sigma_a=sigma_a, g=g, eta=eta,
-        total=float(per_total.mean()), total_err=float(per_total.std(ddof=1) / sq),
-        single=float(per_single.mean()), single_err=float(per_single.std(ddof=1) / sq),
-        multiple=float(per_multi.mean()), multiple_err=float(per_multi.std(ddof=1) / sq),
-        specular=float(((eta - 1.0) / (eta + 1.0)) ** 2),
-        r_edges=r_edges, rd_r=bins_all / (n * area),
+
+    def mean_err(v):
+        return float(v.mean()), float(v.std(ddof=1) / sq) if n > 1 else 0.0
+
+    def bin_err(total, sqsum):
         # Exits treated as independent: a slight underestimate where one photon exits twice.
-        rd_r_err=np.sqrt(np.maximum(0.0, bins_all_sq / n - (bins_all / n) ** 2 / np.maximum(1, n)) / n) / area,
-        rd_r_multiple=bins_multi / (n * area),
-        interactions=interactions, seconds=time.perf_counter() - t0,
+        return np.sqrt(np.maximum(0.0, sqsum / n - (total / n) ** 2 / np.maximum(1, n)) / n) / area
+
+    rs, rs_e = mean_err(per["rs"])
+    rm, rm_e = mean_err(per["rm"])
+    rt, rt_e = mean_err(per["rs"] + per["rm"])
+    ts, ts_e = mean_err(per["ts"])
+    tm, tm_e = mean_err(per["tm"])
+    res = MCResult(
+        n_photons=n, sigma_s=sigma_s, sigma_a=sigma_a, g=g, eta=eta,
+        total=rt, total_err=rt_e, single=rs, single_err=rs_e, multiple=rm, multiple_err=rm_e,
+        specular=float(((eta - 1.0) / (eta + 1.0)) ** 2),
+        r_edges=r_edges, rd_r=bins["r"] / (n * area), rd_r_err=bin_err(bins["r"], bins["r2"]),
+        rd_r_multiple=bins["rm"] / (n * area),
+        interactions=interactions, seconds=0.0,
         extra={"iterations": it, "unfinished": int(ids.size)},
+        thickness=float(thickness), cos_incidence=float(cos_incidence),
+        r_ballistic=r_ball / n, t_ballistic=t_ball / n, t_single=ts, t_single_err=ts_e,
+        t_multiple=tm, t_multiple_err=tm_e,
+        rd_r_multiple_err=bin_err(bins["rm"], bins["rm2"]),
+        td_r=bins["t"] / (n * area), td_r_err=bin_err(bins["t"], bins["t2"]),
+        td_r_multiple=bins["tm"] / (n * area), td_r_multiple_err=bin_err(bins["tm"], bins["tm2"]),
     )
+    if nv:
+        res.views = views
+        res.radiance_single = rad_s.mean(axis=0)
+        res.radiance_single_err = rad_s.std(axis=0, ddof=1) / sq
+        res.radiance_multiple = rad_m.mean(axis=0)
+        res.radiance_multiple_err = rad_m.std(axis=0, ddof=1) / sq
+    res.seconds = time.perf_counter() - t0
+    return res
 
 
 def write_profile_csv(res: MCResult, path, units: str = "mm") -> None:

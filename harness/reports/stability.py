@@ -304,7 +304,7 @@ camera {{ orthographic location <0, 0, 20> direction <0, 0, -1> right <20, 0, 0>
 light_source {{ <0, 0, 1000> rgb 1 parallel point_at <0, 0, 0> }}
 box {{ <-25, -25, -15>, <25, 25, 0>
   texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ sigma_s_prime {ssp} sigma_a {sa} ior {eta}
-    mm_per_unit 1 sample_spacing 0.25 {thin} }} }} }} }}
+    mm_per_unit 1 sample_spacing 0.25 profile dipole single_scatter on {thin} }} }} }} }}
 box {{ <-100, -100, 5>, <0, 100, 5.01> no_image texture {{ pigment {{ rgb 0 }} }} }}
 """
 SLAB_HALF = 25.0  # the slab's lit rectangle is x in [0, 25], y in [-25, 25] (mm)

@@ -572,8 +572,8 @@ def _report(p: Profile, eta: float, e: Estimate) -> str:
     d = dipole_ref.Dipole(f.sigma_s_prime, f.sigma_a, eta)
     lines.append(f"derived: alpha' = {f.sigma_s_prime / st:.4f}; reduced mean free path 1/sigma_t' = {1 / st:.4g} mm; "
                  f"diffuse reflectance Rd = {d.rd_total():.4f}")
-    lines.append(f"finish {{ dipole {{ sigma_s_prime {f.sigma_s_prime:.4g} sigma_a {f.sigma_a:.4g} ior {eta:g} }} }}"
-                 "   // 1/mm; mm_per_unit: millimetres per scene unit")
+    lines.append(f"finish {{ dipole {{ sigma_s_prime {f.sigma_s_prime:.4g} sigma_a {f.sigma_a:.4g} ior {eta:g} profile dipole }} }}"
+                 "   // 1/mm, the dipole these were fitted with; mm_per_unit: millimetres per scene unit")
     return "\n".join(lines)
 
 

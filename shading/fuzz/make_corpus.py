@@ -12,6 +12,10 @@ and step, a NaN value), and valid-checksum payloads with NaN, negative and infin
 (the no-data paths).
 merl/: small non-standard MERL .binary files (dims 2x2x4 and 3x4x6), with no-data samples,
 plus broken ones (truncated header, zero/negative/huge dims, short, long, +Inf).
+ssp/: small exact-profile tables made by sstool (next to brdftool: 4 albedo nodes, a few hundred
+photons; one node, 2 x 2 nodes, slabs), then broken variants (truncated, magic, version, flags,
+counts, reserved field, settings, axes, payload offset and size, checksum) and valid-checksum
+payloads with NaN, negative and inconsistent values.
 """
 import math
 import os
@@ -143,6 +147,68 @@ def main(brdftool, out):
     put(mdir, "bad-dim-huge.binary", struct.pack("<3i", 4096, 4096, 4096) + ok[12:])
     put(mdir, "bad-dim-standard-short.binary", struct.pack("<3i", 90, 90, 180) + ok[12:])
     put(mdir, "bad-inf.binary", merl((2, 2, 4), lambda c, k: math.inf if k == 5 else 1.0))
+
+    # Exact-profile tables (.ssp): checksum of the payload at 24..31, payload offset at 12..15.
+    sdir = os.path.join(out, "ssp")
+    os.makedirs(sdir, exist_ok=True)
+    sstool = os.path.join(os.path.dirname(brdftool), "sstool")
+
+    def ssp_fix(d):
+        d = bytearray(d)
+        off = struct.unpack_from("<I", d, 12)[0]
+        struct.pack_into("<Q", d, 24, fnv1a64(d[off:]))
+        return bytes(d)
+
+    sgood = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        runs = {
+            "one-node": ["--g", "0", "--eta", "1"],
+            "two-by-two": ["--g", "0,0.5", "--eta", "1,1.5"],
+            "slabs": ["--g", "0", "--eta", "1.33", "--thickness", "1,4"],
+        }
+        for name, args in runs.items():
+            path = os.path.join(tmp, name + ".ssp")
+            subprocess.run([sstool, "build", "-o", path, "--albedos", "4", "--photons", "300", "--short-photons", "0",
+                            "--threads", "1", "--quiet", *args], check=True, stderr=subprocess.DEVNULL)
+            sgood[name] = open(path, "rb").read()
+            put(sdir, name + ".ssp", sgood[name])
+    sb = sgood["one-node"]
+    soff = struct.unpack_from("<I", sb, 12)[0]
+
+    def sp(fmt, at, value, fix=False):
+        d = bytearray(sb)
+        struct.pack_into(fmt, d, at, value)
+        return ssp_fix(d) if fix else bytes(d)
+
+    sbad = {
+        "empty": b"",
+        "magic-only": sb[:8],
+        "truncated-header": sb[:100],
+        "truncated-axes": sb[:170],
+        "truncated-payload": sb[:len(sb) - 5],
+        "trailing-bytes": sb + b"\0\0\0\0",
+        "wrong-magic": b"PVSSPROX" + sb[8:],
+        "version-1": sp("<I", 8, 1),
+        "flags-unknown": sp("<I", 36, 4),
+        "flags-slab-one-face": sp("<I", 36, 1),
+        "g-count-zero": sp("<I", 40, 0),
+        "albedo-count-huge": sp("<I", 52, 0xFFFFFFFF),
+        "radial-count-3": sp("<I", 56, 3),
+        "reserved-nonzero": sp("<I", 76, 1),
+        "rho0-nan": sp("<d", 80, math.nan),
+        "u-step-zero": sp("<d", 96, 0.0),
+        "radiance-orders-huge": sp("<d", 152, 1e9),
+        "g-out-of-range": sp("<d", 160, 1.5),
+        "payload-offset": sp("<I", 12, soff + 16),
+        "payload-bytes": sp("<Q", 16, 1 << 60),
+        "checksum-wrong": sp("<Q", 24, 0),
+        "total-nan": sp("<f", soff, math.nan, fix=True),
+        "total-negative": sp("<f", soff, -0.5, fix=True),
+        "profile-negative": sp("<f", len(sb) - 4, -1.0, fix=True),
+        "angle-huge": sp("<f", soff + 24, 1e30, fix=True),
+    }
+    for name, data in sbad.items():
+        put(sdir, "bad-" + name + ".ssp", data)
 
 
 if __name__ == "__main__":

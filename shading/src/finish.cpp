@@ -438,7 +438,7 @@ std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coa
         m->reflection_samples = coat->reflection_samples;
     }
     m->transmittance = std::make_shared<const ModelHandle>(
-        finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(s->dipole().medium().eta))));
+        finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(s->model_ptr()))));
     m->subsurface = std::move(s);
     return m;
 }

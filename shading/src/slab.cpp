@@ -100,7 +100,7 @@ double SlabChannel::T_total() const {
     return power * ratio(sigma_tr, a, zb, L);
 }
 
-SlabProfiles make_slab_profiles(const Dipole& dipole, double d) {
+SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
     if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("make_slab_profiles: thickness must be finite and > 0");
     SlabProfiles out;
     out.d = d;
@@ -109,8 +109,8 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d) {
     for (int c = 0; c < 3; ++c) {
         ch[c] = SlabChannel::make(dipole.channel(c), d);
         if (ch[c].empty) continue;
-        out.R_total[c] = ch[c].R_total();
-        out.T_total[c] = ch[c].T_total();
+        out.R_total[c] = k[c] * ch[c].R_total();
+        out.T_total[c] = k[c] * ch[c].T_total();
         scale = std::min(scale, ch[c].z0);
         cutoff = std::max(cutoff, ch[c].cutoff);
     }
@@ -118,8 +118,8 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d) {
         scale = cutoff = d;
     }
     scale = std::min(scale, cutoff);
-    auto same = [ch](double r) { return Rgb(ch[0].R(r), ch[1].R(r), ch[2].R(r)); };
-    auto transmit = [ch](double rho) { return Rgb(ch[0].T(rho), ch[1].T(rho), ch[2].T(rho)); };
+    auto same = [ch, k](double r) { return Rgb(k[0] * ch[0].R(r), k[1] * ch[1].R(r), k[2] * ch[2].R(r)); };
+    auto transmit = [ch, k](double rho) { return Rgb(k[0] * ch[0].T(rho), k[1] * ch[1].T(rho), k[2] * ch[2].T(rho)); };
     // The disc integrals numerically (RdProfile's Gauss-Legendre on its nodes): the closed-form
     // totals above are the independent check (SlabProfile tests).
     out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff);

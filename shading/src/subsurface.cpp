@@ -179,13 +179,14 @@ RdProfile::RdProfile(Fn rd, Fn disc, double scale, double r_max)
     }
 }
 
-std::shared_ptr<const RdProfile> RdProfile::dipole(const Dipole& d, double r_max) {
-    double scale = kInf;
-    for (int c = 0; c < 3; ++c)
-        if (!d.channel(c).empty) scale = std::min(scale, d.channel(c).zr);
-    if (!std::isfinite(scale)) scale = r_max;  // every channel empty: Rd = 0 anyway
-    return std::make_shared<const RdProfile>([d](double r) { return d.rd(r); },
-                                             [d](double R) { return d.rd_disc(R); }, scale, r_max);
+std::shared_ptr<const RdProfile> RdProfile::of(std::shared_ptr<const RadialProfile> model) {
+    if (!model) throw std::invalid_argument("RdProfile::of: no profile");
+    const double cutoff = model->cutoff();
+    const double r_max = cutoff > 0 ? cutoff : 1.0;  // every channel empty: Rd = 0 anyway
+    const double mfp = model->mean_free_path();  // the dipole's: its smallest zr = 1/sigma_t'
+    const double scale = mfp > 0 ? mfp : r_max;
+    return std::make_shared<const RdProfile>([model](double r) { return model->rd(r); },
+                                             [model](double R) { return model->rd_disc(R); }, scale, r_max);
 }
 
 std::shared_ptr<const RdProfile> RdProfile::tabulated(std::vector<double> r, std::vector<Rgb> rd, double scale) {
@@ -1122,25 +1123,25 @@ struct Subsurface::Index {
 };
 
 Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings, FdrModel fdr,
-                       std::shared_ptr<const RdProfile> profile)
-    : dipole_(medium, fdr), settings_(settings), profile_(std::move(profile)) {
+                       std::shared_ptr<const RadialProfile> model)
+    : dipole_(medium, fdr), settings_(settings), model_(std::move(model)) {
     if (!(settings_.max_angle > 0 && settings_.max_angle <= 2.0))
         throw std::invalid_argument("dipole: error threshold must be in (0, 2], got " + std::to_string(settings_.max_angle));
     if (!(settings_.spacing >= 0) || !std::isfinite(settings_.spacing))
         throw std::invalid_argument("dipole: spacing must be >= 0 (0: automatic)");
-    if (!profile_) {
-        // The radius holding all but 1e-6 of each channel's reflectance; without absorption
-        // Rd's tail is a power law and that radius grows without bound: a million transport
-        // lengths caps it there.
-        double cutoff = 0;
-        for (int c = 0; c < 3; ++c)
-            if (!dipole_.channel(c).empty)
-                cutoff = std::max(cutoff, std::min(dipole_.channel(c).radius_containing(1.0 - 1e-6), 1e6 * dipole_.channel(c).zv));
-        profile_ = RdProfile::dipole(dipole_, cutoff > 0 ? cutoff : 1.0);
-    }
+    if (!model_) model_ = std::make_shared<const DipoleRadialProfile>(dipole_);
+    profile_ = RdProfile::of(model_);
     reach_ = profile_->radius_containing(0.99);
     if (settings_.thin) {
         slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
+        // Another model than the dipole (the exact profile): the multipole scaled per channel
+        // to that model's half-space total, so a slab at the threshold reflects what the
+        // half-space does (DIPOLE.md 6a). The dipole's own: 1.
+        const Rgb model_total = profile_->total(), dipole_total = dipole_.rd_total();
+        for (int c = 0; c < 3; ++c)
+            slab_scale_[c] = dynamic_cast<const DipoleRadialProfile*>(model_.get()) || !(dipole_total[c] > 0)
+                                 ? 1.0
+                                 : model_total[c] / dipole_total[c];
         slab_min_ = kSlabMinMfp * mean_free_path();
         if (slab_threshold_ > slab_min_ && slab_min_ > 0) {
             slab_count_ = std::size_t(std::ceil(kSlabPerOctave * std::log2(slab_threshold_ / slab_min_))) + 1;
@@ -1196,7 +1197,7 @@ const Subsurface::SlabNode& Subsurface::slab_node(double d) const {
     std::lock_guard<std::mutex> lock(slab_mutex_);
     if (const SlabNode* n = slab_nodes_[i].load(std::memory_order_acquire)) return *n;
     auto made = std::make_unique<SlabNode>();
-    made->p = make_slab_profiles(dipole_, slab_min_ * std::exp2(double(i) / kSlabPerOctave));
+    made->p = make_slab_profiles(dipole_, slab_min_ * std::exp2(double(i) / kSlabPerOctave), slab_scale_);
     const SlabNode* n = made.release();
     slab_nodes_[i].store(n, std::memory_order_release);
     return *n;
@@ -1220,14 +1221,7 @@ double RdProfile::radius_containing(double fraction) const {
     return hi;
 }
 
-double Subsurface::mean_free_path() const {
-    double l = 0;
-    for (int c = 0; c < 3; ++c) {
-        const DipoleChannel& ch = dipole_.channel(c);
-        if (!ch.empty) l = l == 0 ? ch.zr : std::min(l, ch.zr);
-    }
-    return l;
-}
+double Subsurface::mean_free_path() const { return model_->mean_free_path(); }
 
 double Subsurface::diffusion_length() const {
     double l = 0;
@@ -1442,7 +1436,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     bump(c.lookups, 1);
     bump(c.visited, visited);
     m += irradiance_here * cloud.level_near(level);
-    return m * fresnel_transmittance(cos_o, dipole_.medium().eta);
+    return m * model_->exit_factor(cos_o);
 }
 
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
@@ -1463,16 +1457,19 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     bump(c.visited, visited);
     bump(c.slab, 1);
     m += irradiance_here * near_same;
-    return m * fresnel_transmittance(cos_o, dipole_.medium().eta);
+    return m * model_->exit_factor(cos_o);
 }
 
 // ---------------------------------------------------------------- BRDFs
 
+TransmittanceBrdf::TransmittanceBrdf(std::shared_ptr<const RadialProfile> model) : model_(std::move(model)) {
+    if (!model_) throw std::invalid_argument("TransmittanceBrdf: no profile");
+}
 Rgb TransmittanceBrdf::f(const Vec3& wo, const Vec3& wi) const {
     if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
-    return Rgb(fresnel_transmittance(wi.z, eta_) * kInvPi);
+    return model_->entry_factor(wi.z) * kInvPi;
 }
-std::string TransmittanceBrdf::describe() const { return "transmittance(eta=" + std::to_string(eta_) + ")"; }
+std::string TransmittanceBrdf::describe() const { return "transmittance(" + model_->describe() + ")"; }
 
 DipoleSurfaceBrdf::DipoleSurfaceBrdf(std::shared_ptr<const Subsurface> s, BrdfPtr coat)
     : s_(std::move(s)), coat_(std::move(coat)) {

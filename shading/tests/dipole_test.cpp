@@ -1,6 +1,7 @@
 // Dipole and single-scattering tests: closed forms against quadrature, preset numbers, hard cases,
 // units, reciprocity and energy. The independent check against transport theory is the Monte Carlo
-// reference in harness/reference/mc_subsurface.py (tests/test_mc_subsurface.py).
+// reference in harness/reference/mc_subsurface.py (checked against Chandrasekhar and compared with the
+// dipole and the exact profile in tests/test_ss_profiles.py).
 #include <gtest/gtest.h>
 
 #include <cmath>

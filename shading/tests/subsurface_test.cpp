@@ -153,11 +153,11 @@ TEST(Subsurface, SurfaceBrdfIsSingleScatteringPlusCoat) {
     DipoleSurfaceBrdf only(s, nullptr);
     Rgb ss = s->dipole().single_scatter_brdf(wo, wi);
     EXPECT_EQ(only.f(wo, wi).g, ss.g);
-    auto coat = std::make_shared<TransmittanceBrdf>(1.5);
+    auto coat = std::make_shared<TransmittanceBrdf>(std::make_shared<DipoleRadialProfile>(Dipole(marble())));
     DipoleSurfaceBrdf both(s, coat);
     EXPECT_DOUBLE_EQ(both.f(wo, wi).g, ss.g + coat->f(wo, wi).g);
     // The transmittance BRDF lit by the light loop yields Ft cos E (POV units).
-    auto t = make_finish_model(std::make_shared<TransmittanceBrdf>(1.5));
+    auto t = make_finish_model(coat);
     Rgb w = finish_light_weight(*t, Vec3(0, 0, 1), Vec3(0, 0, 1), wi, Rgb(1.0));
     EXPECT_NEAR(w.r, fresnel_transmittance(wi.z, 1.5) * wi.z, 1e-12);
 }
@@ -486,7 +486,11 @@ TEST(SubsurfaceRdProfile, TabulatedProfileFollowsTheDipole) {
     EXPECT_THROW(RdProfile::tabulated({0.0, 1.0, 0.5}, {Rgb(1.0), Rgb(0.5), Rgb(0.2)}, 1.0), std::invalid_argument);
     EXPECT_THROW(RdProfile::tabulated({0.1, 1.0}, {Rgb(1.0), Rgb(0.5)}, 1.0), std::invalid_argument);
     EXPECT_THROW(RdProfile::tabulated({0.0, 1.0}, {Rgb(1.0), Rgb(-0.5)}, 1.0), std::invalid_argument);
-    // A Subsurface integrates whatever profile it is given.
-    Subsurface other(marble(), SubsurfaceSettings{}, FdrModel::JensenFit, t);
-    EXPECT_EQ(&other.profile(), t.get());
+    // A Subsurface integrates the table of whatever radial profile (radial_profile.h) it is
+    // given: the dipole's given explicitly is the default's, bit for bit.
+    auto model = std::make_shared<const DipoleRadialProfile>(Dipole(marble()));
+    Subsurface other(marble(), SubsurfaceSettings{}, FdrModel::JensenFit, model);
+    EXPECT_EQ(&other.model(), model.get());
+    EXPECT_EQ(other.cutoff(), s.cutoff());
+    for (double x : {0.0, 0.01, 0.3, 2.0, 40.0}) EXPECT_EQ(other.profile().rd(x).b, p.rd(x).b) << x;
 }

@@ -62,7 +62,9 @@ struct SlabProfiles {
     Rgb R_total, T_total;
     std::shared_ptr<const RdProfile> same, transmit;
 };
-SlabProfiles make_slab_profiles(const Dipole& dipole, double d);
+// `scale`: per channel, multiplies R and T (and their totals): 1 for the dipole; for another
+// half-space model (the exact profile) its total over the dipole's (Subsurface).
+SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& scale = Rgb(1.0));
 
 // The thickness above which a slab's totals differ from the semi-infinite medium's by less
 // than `tolerance` of its total reflectance in every channel, (|R_total(d) - R_inf| + T_total(d)) / R_inf

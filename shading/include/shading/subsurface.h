@@ -8,13 +8,15 @@
 //     samples the object's surface through a SurfaceSampler the renderer implements (lines
 //     crossing the object, and the Fresnel-transmitted irradiance E_t at a point in POV's
 //     units: sum over lights of Ft(eta, cos_l) cos_l x light colour x visibility, the light
-//     loop of a surface whose BRDF is TransmittanceBrdf). Every render thread that asks for a
+//     loop of a surface whose BRDF is TransmittanceBrdf: Ft, or the profile's entry factor,
+//     over pi). Every render thread that asks for a
 //     cloud while it is being built takes part in building it (its own sampler), and the
 //     result does not depend on which thread did what. Where the irradiance departs from a
 //     linear function between neighbouring samples (shadow edges, terminators) the sampling
 //     is refined, level by level, down to a spacing where the near field holds a small part
 //     of Rd (sample_surface below); where no part of the image is within reach it is coarser.
-//  2. At a shading point x seen from direction wo: pixel += Ft(eta, cos_o) M(x), where M(x),
+//  2. At a shading point x seen from direction wo: pixel += Ft(eta, cos_o) M(x) (for another
+//     profile than the dipole: its exit factor, RadialProfile::exit_factor), where M(x),
 //     the radiant exitance, is Jensen 2001's integral of Rd(|x - p|) E_t(p) over the surface.
 //     Since POV's pixel is pi x radiance, this is L_o = (1/pi) Ft(wo) M. M splits at a window
 //     w(r) that rises smoothly (C2) from 0 at R0 - h to 1 at R0 + h (R0 = 2h, h the local
@@ -43,6 +45,7 @@
 
 #include "shading/brdf.h"
 #include "shading/dipole.h"
+#include "shading/radial_profile.h"
 #include "shading/slab.h"
 
 namespace shading {
@@ -68,8 +71,10 @@ public:
     // peak (the smallest mean free path 1/sigma_t'); r_max > 0: where rd may be taken as 0.
     // Throws std::invalid_argument for a bad range.
     RdProfile(Fn rd, Fn disc, double scale, double r_max);
-    // The dipole's own profile (closed-form disc integral; scale = smallest zr).
-    static std::shared_ptr<const RdProfile> dipole(const Dipole& d, double r_max);
+    // The table of a radial profile (radial_profile.h: the dipole, the exact profile): its rd
+    // and disc integral, scale = its smallest mean free path, r_max = its cutoff. The one way a
+    // profile reaches the sampler (Subsurface builds it).
+    static std::shared_ptr<const RdProfile> of(std::shared_ptr<const RadialProfile> model);
     // A tabulated profile: radii 0 = r[0] < r[1] < ... and rd per channel at each (>= 0),
     // interpolated monotonically (Fritsch-Carlson cubic in log rd; linear where rd is 0),
     // 0 beyond the last radius. Throws std::invalid_argument on unsorted or bad input.
@@ -392,19 +397,24 @@ struct SubsurfaceStats {
 };
 SubsurfaceStats subsurface_stats();
 
-// What one `dipole { }` finish holds: the medium, its settings, the radial profile, and the
+// What one `dipole { }` finish holds: the medium, its settings, the radial profile (the model,
+// radial_profile.h, and its table RdProfile::of(model) that the octree reads), and the
 // per-object clouds.
 class Subsurface {
 public:
-    // profile: the radial profile to integrate (null: the dipole's own, RdProfile::dipole).
+    // model: the radial profile to integrate, its exit and entry factors (null: the dipole of
+    // this medium with `fdr`, DipoleRadialProfile; an ExactProfile for `profile exact`). The
+    // dipole of the medium stays for the single-scattering BRDF either way.
     Subsurface(const Medium& medium, const SubsurfaceSettings& settings, FdrModel fdr = FdrModel::JensenFit,
-               std::shared_ptr<const RdProfile> profile = nullptr);
+               std::shared_ptr<const RadialProfile> model = nullptr);
     ~Subsurface();
     Subsurface(const Subsurface&) = delete;
     Subsurface& operator=(const Subsurface&) = delete;
 
     const Dipole& dipole() const { return dipole_; }
     const RdProfile& profile() const { return *profile_; }
+    const RadialProfile& model() const { return *model_; }
+    const std::shared_ptr<const RadialProfile>& model_ptr() const { return model_; }
     const SubsurfaceSettings& settings() const { return settings_; }
 
     // Base sample spacing for an object whose bounding box has the given largest extent: the
@@ -415,8 +425,8 @@ public:
     int refinement_levels(double h0) const;
     // Rd is negligible (below 1e-6 of its integral) beyond this distance: the profile's r_max.
     double cutoff() const { return profile_->r_max(); }
-    // Smallest mean free path 1/sigma_t' over the channels (scene units): geometry thinner
-    // than this is outside the dipole's assumptions (the statistics warn).
+    // Smallest mean free path 1/sigma_t' over the channels (scene units; the model's): geometry
+    // thinner than this is outside the profile's assumptions (the statistics warn).
     double mean_free_path() const;
     // Largest diffusion length 1/sigma_tr over the channels (scene units; inf without absorption).
     double diffusion_length() const;
@@ -439,7 +449,8 @@ public:
     static double near_radius(double h) { return 2.0 * h; }
     Rgb near_reflectance(double h) const { return profile_->near_reflectance(h); }
 
-    // pixel += radiance(...): Ft(eta, cos_o) M(x) (RGB) at x (normal n) on an object whose
+    // pixel += radiance(...): exit_factor(cos_o) M(x) (RGB; RadialProfile::exit_factor, the
+    // dipole's is Ft(eta, cos_o)) at x (normal n) on an object whose
     // cloud is `cloud`, with E_t(x) the transmitted irradiance at x itself; 0 when the viewer
     // is below the surface.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
@@ -453,11 +464,13 @@ public:
 private:
     Dipole dipole_;
     SubsurfaceSettings settings_;
+    std::shared_ptr<const RadialProfile> model_;
     std::shared_ptr<const RdProfile> profile_;
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     // Thin geometry: threshold, the slab nodes (thickness d_k = slab_min_ 2^(k/32)), each built
     // once under slab_mutex_ and read through its atomic pointer.
     double slab_threshold_ = 0, slab_min_ = 0;
+    Rgb slab_scale_{1.0, 1.0, 1.0};  // per channel: the model's half-space total / the dipole's
     struct SlabNode;
     std::size_t slab_count_ = 0;
     std::unique_ptr<std::atomic<const SlabNode*>[]> slab_nodes_;
@@ -472,17 +485,18 @@ private:
     mutable std::atomic<const Index*> index_{nullptr};
 };
 
-// Ft(eta, cos_i) / pi as a Brdf (wo ignored above the surface): lit by the renderer's light
-// loop it yields the transmitted irradiance E_t at a point (the adapter's finish model for it:
-// FinishModel::transmittance, finish.h).
+// RadialProfile::entry_factor(cos_i) / pi as a Brdf (wo ignored above the surface; the
+// dipole's: Ft(eta, cos_i) / pi): lit by the renderer's light loop it yields the transmitted
+// irradiance E_t at a point (the adapter's finish model for it: FinishModel::transmittance,
+// finish.h).
 class TransmittanceBrdf final : public Brdf {
 public:
-    explicit TransmittanceBrdf(double eta) : eta_(eta) {}
+    explicit TransmittanceBrdf(std::shared_ptr<const RadialProfile> model);
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
     std::string describe() const override;
 
 private:
-    double eta_;
+    std::shared_ptr<const RadialProfile> model_;
 };
 
 // The single-scattering term of a medium as a Brdf (Dipole::single_scatter_brdf), optionally
