@@ -29,7 +29,7 @@ from harness.reference import dipole_ref, mc_subsurface
 
 SIGMA_S_PRIME, SIGMA_A, ETA = 1.0, 0.05, 1.3
 MFP = 1.0 / (SIGMA_S_PRIME + SIGMA_A)
-DIPOLE = f"sigma_s_prime {SIGMA_S_PRIME} sigma_a {SIGMA_A} ior {ETA} mm_per_unit 1"
+DIPOLE = f"sigma_s_prime {SIGMA_S_PRIME} sigma_a {SIGMA_A} ior {ETA} mm_per_unit 1 profile dipole"
 SHEET = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}
 camera {{ orthographic location <0, 0, 20> direction <0, 0, -1> right <{view}, 0, 0> up <0, {view}, 0> }}
@@ -79,6 +79,19 @@ def sheets() -> None:
                                    float_exr=True, threads=2))
         want = ft2 * dipole_ref.slab_totals(ch, d)[1]
         print(f"  d = {t:4.2f} mfp: pixel {on:.5f}, diffusion {want:.5f} ({100 * (on / want - 1):+.2f} %); off {off:.5f}")
+        # the exact profile (its slab: the multipole scaled to the exact half-space total) against
+        # the Monte Carlo's diffuse transmittance in the same convention, Ft(1)^2 T_MC
+        if "thickness" in inspect.signature(mc_subsurface.simulate).parameters:
+            try:
+                ex = centre(runner.render(sheet_scene(d, -1000).replace(" profile dipole", " profile exact"), "fork",
+                                          width=16, height=16, float_exr=True, threads=2))
+            except runner.RenderError as e:
+                print(f"    profile exact: not available ({str(e).splitlines()[0]})")
+                continue
+            mc = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=20000, seed=3, thickness=d)
+            mc_want = ft2 * mc.t_total
+            print(f"    profile exact: pixel {ex:.5f}; Ft(1)^2 T_MC {mc_want:.5f} ({100 * (ex / mc_want - 1):+.2f} %); "
+                  f"multipole vs MC {100 * (want / mc_want - 1):+.2f} %")
 
 
 def cost(repeat: int) -> None:
