@@ -197,6 +197,7 @@ bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-
 	$(PY) -m harness.reports.model_bench
 	$(PY) -m harness.reports.dipole_bench
 	$(PY) -m harness.reports.ss_bench
+	$(PY) -m harness.reports.thin_bench
 
 dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg.png and an error table
 	$(PY) -m harness.reports.dg_compare

@@ -110,7 +110,7 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
         ch[c] = SlabChannel::make(dipole.channel(c), d);
         if (ch[c].empty) continue;
         out.R_total[c] = k[c] * ch[c].R_total();
-        out.T_total[c] = k[c] * ch[c].T_total();
+        out.T_total[c] = ch[c].T_total();
         scale = std::min(scale, ch[c].z0);
         cutoff = std::max(cutoff, ch[c].cutoff);
     }
@@ -119,7 +119,7 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
     }
     scale = std::min(scale, cutoff);
     auto same = [ch, k](double r) { return Rgb(k[0] * ch[0].R(r), k[1] * ch[1].R(r), k[2] * ch[2].R(r)); };
-    auto transmit = [ch, k](double rho) { return Rgb(k[0] * ch[0].T(rho), k[1] * ch[1].T(rho), k[2] * ch[2].T(rho)); };
+    auto transmit = [ch](double rho) { return Rgb(ch[0].T(rho), ch[1].T(rho), ch[2].T(rho)); };
     // The disc integrals numerically (RdProfile's Gauss-Legendre on its nodes): the closed-form
     // totals above are the independent check (SlabProfile tests).
     out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff);

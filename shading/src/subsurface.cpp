@@ -1134,9 +1134,9 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     reach_ = profile_->radius_containing(0.99);
     if (settings_.thin) {
         slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
-        // Another model than the dipole (the exact profile): the multipole scaled per channel
-        // to that model's half-space total, so a slab at the threshold reflects what the
-        // half-space does (DIPOLE.md 6a). The dipole's own: 1.
+        // Another model than the dipole (the exact profile): the multipole's R scaled per
+        // channel to that model's half-space total, so a slab at the threshold reflects what
+        // the half-space does (DIPOLE.md 6a); T as it is. The dipole's own: 1.
         const Rgb model_total = profile_->total(), dipole_total = dipole_.rd_total();
         for (int c = 0; c < 3; ++c)
             slab_scale_[c] = dynamic_cast<const DipoleRadialProfile*>(model_.get()) || !(dipole_total[c] > 0)

@@ -62,8 +62,10 @@ struct SlabProfiles {
     Rgb R_total, T_total;
     std::shared_ptr<const RdProfile> same, transmit;
 };
-// `scale`: per channel, multiplies R and T (and their totals): 1 for the dipole; for another
-// half-space model (the exact profile) its total over the dipole's (Subsurface).
+// `scale`: per channel, multiplies R (and its total): 1 for the dipole; for another half-space
+// model (the exact profile) its total over the dipole's (Subsurface), so that R meets that
+// model's half-space at the threshold. T is not scaled (it vanishes there anyway, and the
+// multipole's T is within a few % of transport at high albedo where the dipole's total is not).
 SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& scale = Rgb(1.0));
 
 // The thickness above which a slab's totals differ from the semi-infinite medium's by less
