@@ -190,7 +190,7 @@ test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q
 
-bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-sphere grid, every model, dipole/stock subsurface, exact/dipole profile), glossy noise, profile table build times, image errors
+bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-sphere grid, every model, dipole/stock subsurface, exact/dipole profile), glossy noise, profile table build times, image errors, thin geometry (slab totals vs Monte Carlo, back-lit sheets, cost)
 	$(PY) -m harness.reports.bench
 	$(PY) -m harness.reports.glossy_noise
 	$(PY) -m harness.reports.table_error
