@@ -162,8 +162,9 @@ light_source {{ <-20, 30, -40> rgb 1 }}
 
 
 def test_thin_geometry_is_reported(fork):
-    # A 0.2 mm sheet of a medium whose mean free path is ~1 mm: outside the dipole's thick-medium
-    # assumption, and the statistics say so.
+    # A 0.2 mm sheet of a medium whose mean free path is ~1 mm: the statistics say what thin
+    # geometry did (tests/test_dipole_thin.py checks the light); with thin_geometry off they warn
+    # that the half-space dipole is outside its assumptions.
     text = """#version 3.7;
 global_settings { assumed_gamma 1.0 }
 camera { orthographic location <0, 0, 20> direction <0, 0, -1> right <12, 0, 0> up <0, 12, 0> }
@@ -172,6 +173,12 @@ box { <-5, -5, -0.2>, <5, 5, 0> finish { ambient 0 dipole { sigma_s_prime 1 sigm
 """
     r = runner.render(text, fork, width=24, height=24, float_exr=True)
     assert np.isfinite(r.image).all() and (r.image >= 0).all()
-    assert "thinner than the mean free path" in r.stderr
-    thick = runner.render(text.replace("-0.2>", "-20>"), fork, width=24, height=24, float_exr=True)
-    assert "thinner than the mean free path" not in thick.stderr
+    assert "Dipole thin geometry: 1 object(s)" in r.stderr and "thinnest 0.2 units" in r.stderr
+    assert "thinner than the mean free path" not in r.stderr
+    off = runner.render(text.replace("mm_per_unit 1 }", "mm_per_unit 1 thin_geometry off }"), fork, width=24,
+                        height=24, float_exr=True)
+    assert "thinner than the mean free path" in off.stderr and "thin geometry" not in off.stderr
+    # 100 mm in every direction is above this medium's slab threshold (~30 mm): nothing to report
+    thick = runner.render(text.replace("<-5, -5, -0.2>, <5, 5, 0>", "<-50, -50, -100>, <50, 50, 0>"), fork, width=24,
+                          height=24, float_exr=True)
+    assert "thinner than the mean free path" not in thick.stderr and "thin geometry" not in thick.stderr

@@ -171,6 +171,43 @@ class Dipole:
         return 0.0 if self.empty else float(rd_total_closed(self.alpha_prime, self.A))
 
 
+def slab_totals(ch: Dipole, d: float) -> tuple[float, float]:
+    """Diffuse reflectance and transmittance (R, T) of a slab of thickness d (the channel's length
+    unit) in the diffusion approximation the shading library's multipole uses (shading/slab.h):
+    the laterally integrated fluence phi(z) solves D phi'' - sigma_a phi = -P delta(z - z0) on
+    [-zb, d + zb] with phi = 0 at both ends (zb = 2 A D, D = 1/(3 sigma_t')), the source at the
+    mean depth of first scattering z0 = 1/sigma_t' - d / (exp(sigma_t' d) - 1) with the power
+    scattered in the slab P = alpha' (1 - exp(-sigma_t' d)); R = D phi'(0), T = -D phi'(d).
+
+    Solved here as a linear system for the two exponential pieces on either side of the source
+    (continuity and the flux jump), not from the library's closed form."""
+    if ch.empty:
+        return 0.0, 0.0
+    st, s = ch.sigma_t_prime, ch.sigma_tr
+    D = 1.0 / (3.0 * st)
+    zb = 2.0 * ch.A * D
+    x = st * d
+    P = ch.alpha_prime * -math.expm1(-x)
+    z0 = 1.0 / st if x > 700 else 1.0 / st - d / math.expm1(x)
+    if s * (d + 2 * zb) < 1e-6:  # no absorption: linear pieces
+        # phi = a (z + zb) below z0, b (d + zb - z) above; continuity and D (a + b) = P
+        A_ = np.array([[z0 + zb, -(d + zb - z0)], [D, D]])
+        a, b = np.linalg.solve(A_, np.array([0.0, P]))
+        return float(D * a), float(D * b)
+    # phi = a sinh(s (z + zb)) below z0, b sinh(s (d + zb - z)) above (scaled by exp(-s L) to
+    # stay finite): continuity at z0 and D (phi'(z0-) - phi'(z0+)) = P.
+    L = d + 2 * zb
+    e = lambda u: math.exp(s * (u - L))  # exp(s u) scaled
+    sh = lambda u: 0.5 * (e(u) - math.exp(-s * u - s * L))     # sinh(s u) e^{-s L}
+    chh = lambda u: 0.5 * (e(u) + math.exp(-s * u - s * L))    # cosh(s u) e^{-s L}
+    A_ = np.array([[sh(z0 + zb), -sh(d + zb - z0)],
+                   [D * s * chh(z0 + zb), D * s * chh(d + zb - z0)]])
+    a, b = np.linalg.solve(A_, np.array([0.0, P]))
+    R = D * a * s * chh(zb)
+    T = D * b * s * chh(zb)
+    return float(R), float(T)
+
+
 # ---------------------------------------------------------------------------------------------
 # Single scattering of a flat semi-infinite medium
 

@@ -304,7 +304,7 @@ camera {{ orthographic location <0, 0, 20> direction <0, 0, -1> right <20, 0, 0>
 light_source {{ <0, 0, 1000> rgb 1 parallel point_at <0, 0, 0> }}
 box {{ <-25, -25, -15>, <25, 25, 0>
   texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ sigma_s_prime {ssp} sigma_a {sa} ior {eta}
-    mm_per_unit 1 sample_spacing 0.25 profile dipole single_scatter on }} }} }} }}
+    mm_per_unit 1 sample_spacing 0.25 profile dipole single_scatter on {thin} }} }} }} }}
 box {{ <-100, -100, 5>, <0, 100, 5.01> no_image texture {{ pigment {{ rgb 0 }} }} }}
 """
 SLAB_HALF = 25.0  # the slab's lit rectangle is x in [0, 25], y in [-25, 25] (mm)
@@ -339,9 +339,10 @@ def slab_profile(ssp: float, sa: float, eta: float, width: int, finite: bool) ->
     return x, ft * ft * m + np.where(x > 0, ss, 0.0)
 
 
-def _slab_case(acc: _Acc, ssp: float, sa: float, eta: float, width: int, height: int, finite: bool):
+def _slab_case(acc: _Acc, ssp: float, sa: float, eta: float, width: int, height: int, finite: bool,
+               thin: str = ""):
     up = 20.0 * height / width  # square pixels
-    img = acc.image(runner.render(SLAB.format(up=up, ssp=ssp, sa=sa, eta=eta), "fork", width=width,
+    img = acc.image(runner.render(SLAB.format(up=up, ssp=ssp, sa=sa, eta=eta, thin=thin), "fork", width=width,
                                   height=height, float_exr=True).image)
     x, want = slab_profile(ssp, sa, eta, width, finite)
     prof = img[..., 0].astype(np.float64).mean(axis=0)
@@ -352,7 +353,10 @@ def _slab_case(acc: _Acc, ssp: float, sa: float, eta: float, width: int, height:
 
 def case_dipole_sigma_a_zero() -> CaseResult:
     acc = _Acc()
-    _, _, want, err, keep = _slab_case(acc, 1.0, 0.0, 1.3, 160, 20, finite=True)
+    # Without absorption a 15 mm slab is thin (its slab threshold is far beyond: T falls only as
+    # 1/d) and rightly transmits ~10 %; the reference is the half-space, so the half-space dipole
+    # is what this case checks (thin geometry: tests/test_dipole_thin.py).
+    _, _, want, err, keep = _slab_case(acc, 1.0, 0.0, 1.3, 160, 20, finite=True, thin="thin_geometry off")
     acc.err(float(np.abs(err[keep]).max()))
     rms = float(np.sqrt(np.mean(err[keep] ** 2)))
     return acc.result("albedo → 1: dipole sigma_a = 0 (half-lit slab, finite lit rectangle)",

@@ -131,6 +131,9 @@ struct RadialCurve {
     }
 };
 
+// The largest tail amplitude and radius-node value a file may hold (the loader's bound).
+constexpr double kMaxTailAmplitude = 1e30;
+
 // Radial node positions of the tables: 0, then the geometric centres of bins 1 .. count-1.
 std::vector<double> node_positions(const RadialBins& bins) {
     std::vector<double> r(bins.count);
@@ -150,6 +153,8 @@ struct Diagnostics {
     double worst_deconv = 0;      // largest relative mismatch of annulus means left after deconvolution
     double worst_angle_rms = 0;   // flux-weighted rms relative residual of the high orders' angular fit
     double worst_radiance_flux = 0;  // |exitance implied by the angular samples / the exits' total - 1|
+    int dropped_tails = 0;           // tails whose amplitude would overflow the file (noise-only faces)
+    int noisy_angles = 0;            // faces whose angular samples were normalised by their own flux
 };
 
 void process_face(const McFace& f, const McSettings& mc, int k, double g, double eta, FaceRecord& rec,
@@ -210,7 +215,15 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     double a = 0;
     if (k_tr * rho_t < 600) {
         a = flux_tail ? beyond / tail_flux(k_tr, rho_t) : a_fit;
+        // A face with almost no exits (transmission through a thick slab at low albedo) can put
+        // a few noisy exits beyond a radius where the asymptotic decay is already e^-70: its
+        // flux-matched amplitude then exceeds what the file stores (kMaxTailAmplitude). Such a
+        // tail holds nothing a render can see; it is dropped and counted.
         if (!(std::isfinite(a) && a >= 0)) a = 0;
+        if (a > kMaxTailAmplitude) {
+            a = 0;
+            ++diag.dropped_tails;
+        }
     }
     struct TailFit {
         int kind = -1;  // 0 power (p0 = ln A, p1 = p), 1 asymptotic (p0 = c0, p1 = c1); -1 none
@@ -387,8 +400,8 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
         const double mi = std::sqrt(std::max(0.0, 1.0 - (1.0 - mo * mo) / (eta * eta)));
         norm += 2.0 * (1.0 - fresnel_dielectric(mo, eta)) * std::max(0.0, angle_poly(I, mi)) * mo / steps;
     }
+    const double implied = kPi * norm / (eta * eta);
     if (rec.multi > 1e-4) {
-        const double implied = kPi * norm / (eta * eta);
         diag.worst_radiance_flux = std::max(diag.worst_radiance_flux, std::fabs(implied / rec.multi - 1.0));
         if (std::getenv("SSTOOL_DEBUG"))
             std::fprintf(stderr, "  g %.2f eta %.2f albedo %.6f: angular flux %.5g exits %.5g (%+.4f); I/I(1) at nodes:", g, eta, alpha,
@@ -401,8 +414,17 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     // Stored as pi I / M with M the exits' own total: exit_factor = Ft(mu_o) [pi I / M] / eta^2
     // is then pi L / M at every sampled direction without the interpolant's integral in it (that
     // integral is the diagnostic above).
+    // Where the two estimates of the face's exitance disagree by more than a factor 2 (a face
+    // with a handful of exits: thick slabs' transmission at low albedo), the exits' total is
+    // noise and the ratio can reach 1e6; the angular shape is then normalised by its own flux,
+    // so exit_factor integrates to the face's total as everywhere else.
+    double norm_flux = rec.multi;
+    if (rec.multi > 0 && implied > 0 && std::fabs(std::log(implied / rec.multi)) > std::log(2.0)) {
+        norm_flux = implied;
+        ++diag.noisy_angles;
+    }
     rec.angle.resize(J);
-    for (int j = 0; j < J; ++j) rec.angle[j] = rec.multi > 0 ? kPi * I[j] / rec.multi : 1.0;
+    for (int j = 0; j < J; ++j) rec.angle[j] = norm_flux > 0 ? kPi * I[j] / norm_flux : 1.0;
 }
 
 std::uint64_t node_seed(std::uint64_t seed, int node, int incidence) {
@@ -621,14 +643,16 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                         }
             }
             if (log) {
-                char buf[400];
+                char buf[520];
                 const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - tn).count();
                 std::snprintf(buf, sizeof buf,
                               "g=%g d=%g (%zu etas): %.2f s, %.3g flights, %d threads; tail amplitude flux/fit worst %.3f, "
                               "deconvolution residual %.1e, high-order angle fit rms residual worst %.3f, angular/exit "
-                              "flux mismatch worst %.4f, incidence factors clamped %d",
+                              "flux mismatch worst %.4f, incidence factors clamped %d, noise-only tails dropped %d, angular "
+                              "samples normalised by their own flux %d",
                               g, s.thickness[id], ne, sec, double(steps), normal.threads_used, diag.worst_tail_ratio,
-                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, clamped);
+                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, clamped, diag.dropped_tails,
+                              diag.noisy_angles);
                 log(buf);
             }
         }
@@ -815,7 +839,7 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
         r.single = value("single", 0.0, 1.5);
         r.ballistic = value("ballistic", 0.0, 1.5);
         r.tail_k = value("tail rate", 0.0, 1e6);
-        r.tail_a = value("tail amplitude", 0.0, 1e30);
+        r.tail_a = value("tail amplitude", 0.0, kMaxTailAmplitude);
         r.rho_tail = value("tail radius", 1e-6, 1e6);
         r.angle.resize(s.angle_nodes);
         for (int j = 0; j < s.angle_nodes; ++j) r.angle[j] = value("angle sample " + std::to_string(j), 0.0, 1e6);

@@ -25,11 +25,11 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // read-modify-write on the hot path) and subsurface_stats() adds the blocks up.
 std::atomic<std::size_t> g_clouds{0}, g_points{0}, g_refined{0};
 std::atomic<std::int64_t> g_build_ns{0};
-std::atomic<std::size_t> g_unbounded{0}, g_thin{0};
+std::atomic<std::size_t> g_unbounded{0}, g_thin{0}, g_slab_objects{0};
 std::atomic<int> g_max_levels{0};
 
 struct alignas(64) LookupCounter {
-    std::atomic<std::uint64_t> lookups{0}, visited{0};
+    std::atomic<std::uint64_t> lookups{0}, visited{0}, slab{0};
 };
 
 struct Notes {
@@ -37,6 +37,7 @@ struct Notes {
     std::vector<std::unique_ptr<LookupCounter>> counters;
     std::vector<std::string> notes;
     double finest = 0;
+    double thinnest = 0, thinnest_mfp = 0;  // over the objects with slab lookups (0: none)
 };
 Notes& notes() {
     static Notes n;
@@ -60,6 +61,13 @@ void bump(std::atomic<std::uint64_t>& c, std::uint64_t by) {
 }
 
 constexpr int kLeafSize = 8;
+
+// Thin geometry (slab.h): slabs within 0.5 % of the half-space are the half-space; thickness
+// nodes 32 per octave (neighbours 2.2 % apart: the profile of the nearest is used) from 0.01
+// transport mean free paths (thinner is taken as that).
+constexpr double kSlabTolerance = 0.005;
+constexpr double kSlabPerOctave = 32;
+constexpr double kSlabMinMfp = 0.01;
 constexpr int kMaxDepth = 48;
 
 // RdProfile nodes: 2^kSubBits per octave of s = 1 + r / scale.
@@ -93,7 +101,11 @@ SubsurfaceStats subsurface_stats() {
     for (const auto& c : n.counters) {
         s.lookups += c->lookups.load(std::memory_order_relaxed);
         s.nodes_visited += c->visited.load(std::memory_order_relaxed);
+        s.slab_lookups += c->slab.load(std::memory_order_relaxed);
     }
+    s.slab_objects = g_slab_objects.load();
+    s.thinnest = n.thinnest;
+    s.thinnest_mfp = n.thinnest_mfp;
     s.notes = n.notes;
     std::sort(s.notes.begin(), s.notes.end());
     s.finest_spacing = n.finest;
@@ -355,7 +367,10 @@ inline double box_distance2(const Vec3& x, const float* lo, const float* hi) {
 
 PointCloud::PointCloud(std::vector<SurfacePoint> points, double spacing, const Rgb& near)
     : spacing_(spacing), points_(std::move(points)) {
-    for (SurfacePoint& p : points_) p.spacing = spacing;
+    for (SurfacePoint& p : points_) {
+        p.spacing = spacing;
+        thinnest_ = std::min(thinnest_, p.thickness);
+    }
     levels_.push_back({spacing, near});
     if (!points_.empty()) build_tree(nullptr);
     finish();
@@ -368,6 +383,7 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, con
         if (!(p.spacing > 0) || !std::isfinite(p.spacing)) throw std::invalid_argument("PointCloud: every point needs a spacing > 0");
         coarsest = std::max(coarsest, p.spacing);
         finest = std::min(finest, p.spacing);
+        thinnest_ = std::min(thinnest_, p.thickness);
     }
     spacing_ = coarsest > 0 ? coarsest : 1.0;
     if (!points_.empty()) build_tree(parallel);
@@ -452,12 +468,14 @@ struct PointCloud::Tree {
     std::vector<Agg> aggs;
     std::vector<Aux> aux;
     std::vector<Merge> merge;
+    std::vector<Cone> cones;
     int grow(int n) {
         const int at = int(nodes.size());
         nodes.resize(at + n);
         aggs.resize(at + n);
         aux.resize(at + n);
         merge.resize(at + n);
+        cones.resize(at + n);
         return at;
     }
 };
@@ -485,6 +503,7 @@ void PointCloud::build_tree(const ParallelFor* parallel) {
         t.aggs.reserve(total);
         t.aux.reserve(total);
         t.merge.reserve(total);
+        t.cones.reserve(total);
         t.grow(n);
         t.nodes[0].child = 1;
         t.nodes[0].children = std::int16_t(n);
@@ -498,6 +517,7 @@ void PointCloud::build_tree(const ParallelFor* parallel) {
                 t.aggs[to] = s.aggs[from];
                 t.aux[to] = s.aux[from];
                 t.merge[to] = s.merge[from];
+                t.cones[to] = s.cones[from];
             };
             place(1 + k, 0);
             t.nodes[1 + k].octant = std::uint8_t(ranges[k][2]);
@@ -510,6 +530,7 @@ void PointCloud::build_tree(const ParallelFor* parallel) {
     nodes_ = std::move(t.nodes);
     aggs_ = std::move(t.aggs);
     aux_ = std::move(t.aux);
+    cones_ = std::move(t.cones);
 }
 
 // Bounds top-down (the split needs them), aggregates bottom-up: a leaf's from its points, a
@@ -582,6 +603,7 @@ void PointCloud::aggregate(Tree& t, int index, int first, int count, int n) {
     double cov[6] = {0, 0, 0, 0, 0, 0};
     Rgb flux;
     double max_spacing = 0;
+    Vec3 nsum;
     auto add = [&](double w, double a, const Vec3& cw, const Vec3& ca, const double* S, const Rgb& f, double sp) {
         // merge (w, cw, S) into the running (wsum, wmean, cov): parallel-axis rule
         if (w > 0) {
@@ -602,23 +624,49 @@ void PointCloud::aggregate(Tree& t, int index, int first, int count, int n) {
         flux += f;
         max_spacing = std::max(max_spacing, sp);
     };
+    // The normal cone (thin geometry): axis along the area-weighted normal sum, half-angle the
+    // widest normal (a leaf) or child cone (a parent) from it, rounded up; pi when the normals
+    // cancel.
+    double cone = 0;
+    auto angle_to = [](const Vec3& axis, const Vec3& v) { return std::acos(std::max(-1.0, std::min(1.0, dot(axis, v)))); };
     if (n <= 1) {
         static const double zero[6] = {0, 0, 0, 0, 0, 0};
         for (int i = first; i < first + count; ++i) {
             const SurfacePoint& s = points_[i];
             const Rgb f = s.irradiance * s.area;
             add(f.r + f.g + f.b, s.area, s.p, s.p, zero, f, s.spacing);
+            nsum = nsum + s.n * std::max(s.area, 1e-300);
         }
+        const double len = length(nsum);
+        const Vec3 axis = len > 0 ? nsum * (1.0 / len) : Vec3(0, 0, 1);
+        if (!(len > 0)) cone = kPi;
+        for (int i = first; i < first + count && cone < kPi; ++i) cone = std::max(cone, angle_to(axis, points_[i].n));
     } else {
         const int child = t.nodes[index].child;
         for (int k = 0; k < n; ++k) {
             const Agg& c = t.aggs[child + k];
             const Merge& m = t.merge[child + k];
             add(m.wsum, m.area, c.centre, m.area_centre, c.cov, c.flux, t.aux[child + k].max_spacing);
+            nsum = nsum + m.nsum;
+        }
+        const double len = length(nsum);
+        const Vec3 axis = len > 0 ? nsum * (1.0 / len) : Vec3(0, 0, 1);
+        if (!(len > 0)) cone = kPi;
+        for (int k = 0; k < n && cone < kPi; ++k) {
+            const Cone& cc = t.cones[child + k];
+            cone = std::max(cone, angle_to(axis, Vec3(cc.axis[0], cc.axis[1], cc.axis[2])) + double(cc.angle));
         }
     }
+    {
+        const double len = length(nsum);
+        const Vec3 axis = len > 0 ? nsum * (1.0 / len) : Vec3(0, 0, 1);
+        Cone& cc = t.cones[index];
+        cc.axis[0] = float(axis.x), cc.axis[1] = float(axis.y), cc.axis[2] = float(axis.z);
+        // float axis and angle: 1e-5 rad covers their rounding
+        cc.angle = float(std::min(kPi, cone + 1e-5));
+    }
     Agg& g = t.aggs[index];
-    t.merge[index] = {wsum, area, amean};
+    t.merge[index] = {wsum, area, amean, nsum};
     // The flux-weighted centre is where an aggregate's light comes from; an unlit node has
     // no flux to place, its area-weighted centre is used.
     if (wsum > 0) g.centre = wmean;
@@ -822,6 +870,180 @@ Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0
     return sum;
 }
 
+Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
+                                   double d, double r0, double h, double max_angle, const Rgb& near_opposite,
+                                   std::size_t* visited) const {
+    Rgb sum;
+    if (nodes_.empty()) return sum;
+    const double inner2 = sqr(std::max(0.0, r0 - h)), outer = r0 + h, outer2 = outer * outer;
+    const double d2 = d * d;
+    const double cut_same2 = sqr(same.r_max()), cut_t = transmit.r_max();
+    // rho >= sqrt(s^2 - d^2): nothing of T beyond s^2 = r_max^2 + d^2
+    const double cut_opp2 = cut_t * cut_t + d2;
+    const double cut2 = std::max(cut_same2, cut_opp2);
+    const double angle2 = max_angle * max_angle;
+    const double gain_cap = std::max(1.0, 1.0 / angle2);
+    constexpr double kHalfPi = 0.5 * kPi;
+    // The lateral distance of p from x for the transmission profile: rho^2 = s^2 - min(v.nx, d)^2
+    // (v = x - p): a flat slab's sqrt(s^2 - d^2) on its opposite face, the distance across
+    // x's normal line where the far side is closer than d (a curved object), and never below
+    // the lateral distance, which moves by at most |p - q| between points p, q.
+    auto rho_of = [&](const Vec3& p) {
+        const Vec3 v = x - p;
+        const double vn = std::min(std::fabs(dot(v, nx)), d);
+        return std::sqrt(std::max(0.0, dot(v, v) - vn * vn));
+    };
+    // The opposite face's near field: inside the window (in rho) its points only give their
+    // irradiance to a (1 - w)-weighted mean, which lights the part of T inside the window
+    // (near_opposite, integrated, not sampled: T's peak is as narrow as the slab and would
+    // fall between samples).
+    double near_area = 0;
+    Rgb near_flux;
+    std::size_t opened = 0;
+    // Stack entries: node, side (0: not known yet, 1: every normal on nx's side, 2: every
+    // normal on the other side; a side, once known, holds for the subtree).
+    int stack[8 * kMaxDepth + 16];
+    std::uint8_t sides[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top] = 0;
+    sides[top++] = 0;
+    auto add_point = [&](int i, bool opp) {
+        const Leaf& s = leaves_[i];
+        const Vec3 v = x - s.p;
+        const double r2 = dot(v, v);
+        if (opp) {
+            if (r2 > cut_opp2) return;
+            const double rho = rho_of(s.p);
+            double w = 1.0;
+            if (rho < outer) {
+                w = rho * rho <= inner2 ? 0.0 : window(rho, r0, h);
+                near_area += (1.0 - w) * points_[i].area;
+                near_flux += s.flux * (1.0 - w);
+            }
+            if (w > 0) sum += transmit.rd(rho) * s.flux * w;
+            return;
+        }
+        if (r2 <= inner2 || r2 > cut_same2) return;
+        const double r = std::sqrt(r2);
+        const double w = r2 >= outer2 ? 1.0 : window(r, r0, h);
+        sum += same.rd(r) * s.flux * w;
+    };
+    while (top > 0) {
+        --top;
+        const int k = stack[top];
+        int side = sides[top];
+        const Node& nd = nodes_[k];
+        ++opened;
+        if (!nd.lit) continue;
+        const double dbox2 = box_distance2(x, nd.lo, nd.hi);
+        if (dbox2 > cut2) continue;
+        // The side an aggregate of this node takes: `side` where known; else, for a node of
+        // one sheet (its normals within 90 degrees of its axis: a curved surface crossing the
+        // plane of nx, e.g. the rim of a sphere seen from x), its axis's side (its points on
+        // the other side are few, at the seam of the two profiles); a node whose normals
+        // spread wider (both faces of a sheet) has none and is opened.
+        int agg_side = side;
+        if (side == 0) {
+            // The cone's axis at angle phi from nx, half-angle c: every normal has dot > 0 with
+            // nx when phi + c < pi/2, dot < 0 when phi - c > pi/2.
+            const Cone& cc = cones_[k];
+            const double phi = std::acos(std::max(-1.0, std::min(1.0, cc.axis[0] * nx.x + cc.axis[1] * nx.y + cc.axis[2] * nx.z)));
+            if (phi + cc.angle < kHalfPi) side = 1;
+            else if (phi - cc.angle > kHalfPi) side = 2;
+            agg_side = side != 0 ? side : (cc.angle < kHalfPi ? (phi < kHalfPi ? 1 : 2) : 0);
+        }
+        if (side == 1 && dbox2 > cut_same2) continue;
+        if (side == 2 && dbox2 > cut_opp2) continue;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const bool opp = side == 2 || (side == 0 && !(dot(points_[i].n, nx) > 0));
+                add_point(i, opp);
+            }
+            continue;
+        }
+        if (agg_side == 1 && dbox2 > outer2) {
+            // As far_exitance: Rd at the centre plus (1/2) tr(H Sigma).
+            const Agg& g = aggs_[k];
+            const Vec3 v = g.centre - x;
+            const double dc2 = dot(v, v);
+            if (double(nd.diag2) < angle2 * std::min(same.angle_gain2(dc2), gain_cap) * dc2) {
+                const double dc = std::sqrt(dc2), inv = 1.0 / dc;
+                const Vec3 u = v * inv;
+                const double* C = g.cov;
+                const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
+                                   u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
+                                   u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
+                const double a = 0.5 * uCu, b = 0.5 * (C[0] + C[1] + C[2] - uCu) * inv;
+                Rgb f0, f1, f2;
+                same.eval(dc, &f0, &f1, &f2);
+                sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
+                sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
+                sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
+                continue;
+            }
+        } else if (agg_side == 2) {
+            // T at the centre's rho plus the second-order term of its expansion in the plane
+            // across nx (exact geometry for a flat slab, where rho is the in-plane distance):
+            // (1/2) tr(H Sigma_p), H = T'' u u^T + (T'/rho)(I - u u^T) in that plane, Sigma_p
+            // the covariance projected onto it, u the in-plane direction to the centre. For a
+            // node wholly beyond the window in rho (rho of any of its points >= the centre's -
+            // the diagonal) and small as seen from x.
+            const Agg& g = aggs_[k];
+            const Vec3 v = g.centre - x;
+            const double dc2 = dot(v, v), diag = std::sqrt(double(nd.diag2));
+            const double rho = rho_of(g.centre);
+            if (rho - diag > outer && double(nd.diag2) < angle2 * dc2) {
+                const Vec3 lat = v - nx * dot(v, nx);
+                const double ll = length(lat);
+                const Vec3 u = ll > 0 ? lat * (1.0 / ll) : Vec3(0, 0, 0);
+                const double* C = g.cov;
+                auto quad = [C](const Vec3& a) {
+                    return a.x * (C[0] * a.x + C[3] * a.y + C[4] * a.z) + a.y * (C[3] * a.x + C[1] * a.y + C[5] * a.z) +
+                           a.z * (C[4] * a.x + C[5] * a.y + C[2] * a.z);
+                };
+                const double uCu = quad(u), nCn = quad(nx);
+                const double a = 0.5 * uCu, b = 0.5 * std::max(0.0, C[0] + C[1] + C[2] - nCn - uCu) / rho;
+                Rgb f0, f1, f2;
+                transmit.eval(rho, &f0, &f1, &f2);
+                sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
+                sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
+                sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
+                continue;
+            }
+        }
+        for (int c = 0; c < nd.children; ++c) {
+            stack[top] = nd.child + c;
+            sides[top++] = std::uint8_t(side);
+        }
+    }
+    if (visited) *visited += opened;
+    if (near_area > 0) sum += near_opposite * near_flux * (1.0 / near_area);
+    return sum;
+}
+
+Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x,
+                                         const Vec3& nx, double d, double r0, double h, const Rgb& near_opposite) const {
+    Rgb sum, near_flux;
+    double near_area = 0;
+    for (const SurfacePoint& s : points_) {
+        const Vec3 v = x - s.p;
+        const double r = length(v);
+        if (dot(s.n, nx) > 0) {
+            const double w = window(r, r0, h);
+            if (w > 0) sum += same.exact(r) * s.irradiance * (s.area * w);
+        } else {
+            const double vn = std::min(std::fabs(dot(v, nx)), d);
+            const double rho = std::sqrt(std::max(0.0, r * r - vn * vn));
+            const double w = window(rho, r0, h);
+            sum += transmit.exact(rho) * s.irradiance * (s.area * w);
+            near_area += (1.0 - w) * s.area;
+            near_flux += s.irradiance * ((1.0 - w) * s.area);
+        }
+    }
+    if (near_area > 0) sum += near_opposite * near_flux * (1.0 / near_area);
+    return sum;
+}
+
 CloudStats PointCloud::stats() const {
     CloudStats s;
     s.points = points_.size();
@@ -910,9 +1132,82 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     if (!model_) model_ = std::make_shared<const DipoleRadialProfile>(dipole_);
     profile_ = RdProfile::of(model_);
     reach_ = profile_->radius_containing(0.99);
+    if (settings_.thin) {
+        slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
+        // Another model than the dipole (the exact profile): the multipole's R scaled per
+        // channel to that model's half-space total, so a slab at the threshold reflects what
+        // the half-space does (DIPOLE.md 6a); T as it is. The dipole's own: 1.
+        const Rgb model_total = profile_->total(), dipole_total = dipole_.rd_total();
+        for (int c = 0; c < 3; ++c)
+            slab_scale_[c] = dynamic_cast<const DipoleRadialProfile*>(model_.get()) || !(dipole_total[c] > 0)
+                                 ? 1.0
+                                 : model_total[c] / dipole_total[c];
+        slab_min_ = kSlabMinMfp * mean_free_path();
+        if (slab_threshold_ > slab_min_ && slab_min_ > 0) {
+            slab_count_ = std::size_t(std::ceil(kSlabPerOctave * std::log2(slab_threshold_ / slab_min_))) + 1;
+            slab_nodes_.reset(new std::atomic<const SlabNode*>[slab_count_]);
+            for (std::size_t k = 0; k < slab_count_; ++k) slab_nodes_[k].store(nullptr, std::memory_order_relaxed);
+        } else {
+            slab_threshold_ = 0;  // (a medium without scattering: nothing to do)
+        }
+    }
 }
 
-Subsurface::~Subsurface() = default;
+// ---------------------------------------------------------------- Subsurface: thin geometry
+
+// One slab thickness: its profiles and the near reflectance of R per lookup spacing h (a list
+// that only grows, pushed with compare-exchange: lookups read it without a lock).
+struct Subsurface::SlabNode {
+    SlabProfiles p;
+    struct Near {
+        double h;
+        Rgb same, opposite;  // near_reflectance(h) of R and of T (in rho)
+        const Near* next;
+    };
+    mutable std::atomic<const Near*> near_list{nullptr};
+    ~SlabNode() {
+        for (const Near* n = near_list.load(); n;) {
+            const Near* next = n->next;
+            delete n;
+            n = next;
+        }
+    }
+    void near(double h, Rgb* same, Rgb* opposite) const {
+        const Near* head = near_list.load(std::memory_order_acquire);
+        for (const Near* n = head; n; n = n->next)
+            if (n->h == h) {
+                *same = n->same;
+                *opposite = n->opposite;
+                return;
+            }
+        Near* made = new Near{h, p.same->near_reflectance(h), p.transmit->near_reflectance(h), head};
+        // Another thread may have pushed meanwhile (maybe the same h: harmless, equal values).
+        while (!near_list.compare_exchange_weak(made->next, made, std::memory_order_acq_rel)) {
+        }
+        *same = made->same;
+        *opposite = made->opposite;
+    }
+};
+
+const Subsurface::SlabNode& Subsurface::slab_node(double d) const {
+    if (!(slab_count_ > 0)) throw std::logic_error("Subsurface::slab: thin geometry is off");
+    const double k = std::round(kSlabPerOctave * std::log2(std::max(d, slab_min_) / slab_min_));
+    const std::size_t i = std::size_t(std::min(double(slab_count_ - 1), std::max(0.0, k)));
+    if (const SlabNode* n = slab_nodes_[i].load(std::memory_order_acquire)) return *n;
+    std::lock_guard<std::mutex> lock(slab_mutex_);
+    if (const SlabNode* n = slab_nodes_[i].load(std::memory_order_acquire)) return *n;
+    auto made = std::make_unique<SlabNode>();
+    made->p = make_slab_profiles(dipole_, slab_min_ * std::exp2(double(i) / kSlabPerOctave), slab_scale_);
+    const SlabNode* n = made.release();
+    slab_nodes_[i].store(n, std::memory_order_release);
+    return *n;
+}
+
+const SlabProfiles& Subsurface::slab(double d) const { return slab_node(d).p; }
+
+Subsurface::~Subsurface() {
+    for (std::size_t k = 0; k < slab_count_; ++k) delete slab_nodes_[k].load();
+}
 
 double RdProfile::radius_containing(double fraction) const {
     double lo = 0, hi = r_max_;
@@ -1009,6 +1304,7 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
             plan.tolerance = settings_.tolerance;
             plan.max_points = settings_.max_points;
             plan.mean_free_path = mean_free_path();
+            plan.thickness = slab_threshold_ > 0;
             plan.reach = reach_;
             points = sample_surface(parallel, plan, &report);
         } else {
@@ -1024,7 +1320,9 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
     g_points += cloud->points().size();
     g_refined += report.refined;
     if (report.unbounded) ++g_unbounded;
-    if (report.thin) ++g_thin;
+    const bool slab_object = cloud->thinnest() < slab_threshold_;
+    if (slab_object) ++g_slab_objects;
+    else if (report.thin && !(slab_threshold_ > 0)) ++g_thin;  // thin geometry off: the old warning
     int seen = g_max_levels.load();
     while (report.levels > seen && !g_max_levels.compare_exchange_weak(seen, report.levels)) {
     }
@@ -1038,7 +1336,8 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
                " units)\n  is smaller than 3 diffusion lengths (" +
                (std::isfinite(L) ? "1/sigma_tr = " + fmt3(L * mpu) + " mm = " + fmt3(L) + " units\n  at mm_per_unit " + fmt3(mpu)
                                  : "no absorption: unbounded") +
-               "): light that would glow through it is lost";
+               (slab_object ? "): light through it follows slab profiles\n  (thinnest " + fmt3(cloud->thinnest()) + " units)"
+                            : "): light that would glow through it is lost");
     }
     {
         Notes& n = notes();
@@ -1046,6 +1345,10 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
         if (!note.empty()) n.notes.push_back(note);
         const double finest = cloud->stats().finest_spacing;
         if (report.levels > 0 && (n.finest == 0 || finest < n.finest)) n.finest = finest;
+        if (slab_object && (n.thinnest == 0 || cloud->thinnest() < n.thinnest)) {
+            n.thinnest = cloud->thinnest();
+            n.thinnest_mfp = cloud->thinnest() / mean_free_path();
+        }
     }
     g_build_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
     return cloud;
@@ -1133,6 +1436,27 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     bump(c.lookups, 1);
     bump(c.visited, visited);
     m += irradiance_here * cloud.level_near(level);
+    return m * model_->exit_factor(cos_o);
+}
+
+Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                         const Rgb& irradiance_here, double thickness) const {
+    if (!(thickness < slab_threshold_)) return radiance(cloud, x, n, to_eye, irradiance_here);
+    const double cos_o = dot(n, to_eye);
+    if (!(cos_o > 0)) return Rgb(0.0);
+    const SlabNode& slab = slab_node(thickness);
+    const int level = cloud.lookup_level(x);
+    const double h = cloud.level_spacing(level), r0 = near_radius(h);
+    std::size_t visited = 0;
+    Rgb near_same, near_opposite;
+    slab.near(h, &near_same, &near_opposite);
+    Rgb m = cloud.far_exitance_sided(*slab.p.same, *slab.p.transmit, x, n, slab.p.d, r0, h, settings_.max_angle,
+                                     near_opposite, &visited);
+    LookupCounter& c = thread_counter();
+    bump(c.lookups, 1);
+    bump(c.visited, visited);
+    bump(c.slab, 1);
+    m += irradiance_here * near_same;
     return m * model_->exit_factor(cos_o);
 }
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdint>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -79,6 +80,7 @@ struct Sample {
     double area = 0;
     Rgb irradiance;
     double e = 0;  // E_t summed over the channels
+    double thickness = std::numeric_limits<double>::infinity();
     std::uint8_t level = 0;
     bool active = true;
 };
@@ -107,6 +109,7 @@ private:
     bool make_sample(int line, int layer, Sample* s) const;
     void add_sample(int line, int layer);
     void light(std::size_t first);
+    bool thickness_ = false;  // ask for each sample's thickness (SamplingPlan::thickness)
     bool neighbour(const Sample& s, int di, int dj, double* e) const;
 
     const ParallelFor& parallel_;
@@ -205,6 +208,7 @@ void Sampling::light(std::size_t first) {
         const SurfaceSampler::Hit& at = hit(S);
         S.irradiance = s.irradiance(at.p, at.n);
         S.e = S.irradiance.r + S.irradiance.g + S.irradiance.b;
+        if (thickness_) S.thickness = s.thickness(at.p, at.n);
     });
     for (std::size_t k = first; k < samples_.size(); ++k) e_max_ = std::max(e_max_, samples_[k].e);
 }
@@ -238,6 +242,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
     const double tolerance = plan.tolerance, mfp = plan.mean_free_path;
     const std::size_t max_points = plan.max_points;
     report->view_limited = plan.view.kind != ViewVolume::Kind::Everywhere;
+    thickness_ = plan.thickness;
     // Level 0: three families of lines at spacing h0 across the box. The base spacing (after
     // the view levels) would need `dense` lines over the whole box: too many for any view.
     double total = 0, dense = 0;
@@ -438,6 +443,8 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
             pt.area = s.area;
             pt.irradiance = s.irradiance;
             pt.spacing = spacing(s.level);
+            pt.thickness = s.thickness;
+            report->thinnest = std::min(report->thinnest, s.thickness);
             out.push_back(pt);
         }
     return out;

@@ -110,6 +110,33 @@ TEST(ProfileTables, FileRoundTripIsExactAndStaleDetection) {
     EXPECT_TRUE(back->stale(other));
 }
 
+// Thick slabs at low albedo transmit almost nothing: a face with a handful of noisy exits must
+// still give a file its own loader accepts (it once stored an angle sample of 1.4e6 and a tail
+// amplitude beyond the format's bound) and a finite, non-negative profile.
+TEST(ProfileTables, NoiseOnlySlabFacesStillLoad) {
+    ProfileBuildSettings s;
+    s.g = {0.0};
+    s.eta = {1.33};
+    s.thickness = {16.0, 32.0, 64.0};
+    s.photons = 2000;
+    s.short_photons = 5000;
+    s.threads = 2;
+    auto t = build_profile_tables(s);
+    const std::vector<std::uint8_t> bytes = t->serialize();
+    EXPECT_EQ(load_error(bytes), "");
+    auto back = load_profile_tables(bytes.data(), bytes.size(), "slabs.ssp");
+    for (double d : {16.0, 40.0, 64.0})
+        for (int face : {0, 1})
+            for (double a : {0.1, 0.5, 0.9}) {
+                ChannelProfile c(*back, a, 0.0, 1.33, d, face);
+                for (double r : {0.1, 1.0, 10.0}) {
+                    const double v = c.rd(r);
+                    EXPECT_TRUE(std::isfinite(v) && v >= 0) << "d " << d << " face " << face << " a " << a << " r " << r;
+                }
+                for (double mu : {0.2, 1.0}) EXPECT_TRUE(std::isfinite(c.exit_factor(mu))) << d << " " << face << " " << a;
+            }
+}
+
 TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
     const std::vector<std::uint8_t> good = small_tables().serialize();
     struct Case {

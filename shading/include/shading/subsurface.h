@@ -37,6 +37,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -45,6 +46,7 @@
 #include "shading/brdf.h"
 #include "shading/dipole.h"
 #include "shading/radial_profile.h"
+#include "shading/slab.h"
 
 namespace shading {
 
@@ -134,6 +136,9 @@ struct SurfacePoint {
     double area = 0;
     Rgb irradiance;
     double spacing = 0;  // 0: the cloud's spacing (PointCloud(points, spacing, near))
+    // Distance along -n to the object's next surface crossing (SurfaceSampler::thickness;
+    // infinity: none, or not asked for).
+    double thickness = std::numeric_limits<double>::infinity();
 };
 
 struct CloudStats {
@@ -164,6 +169,8 @@ public:
     const Rgb& level_near(int level) const { return levels_[level].near; }
     // Near reflectance of the base spacing (one-level clouds).
     const Rgb& near_reflectance() const { return levels_.front().near; }
+    // The smallest SurfacePoint::thickness (infinity: none known).
+    double thinnest() const { return thinnest_; }
 
     // The far part of M(x): sum over points of w(r) Rd(r) A E_t per channel (window of
     // radius r0 = 2h, ramp [r0 - h, r0 + h]), with a node's aggregate used in place of its
@@ -178,6 +185,21 @@ public:
     // The same sum over every point with the profile's exact callable, no aggregation and no
     // cutoff: the reference.
     Rgb far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h) const;
+    // Thin geometry (shading/DIPOLE.md section 6a): M(x) at a point of unit normal nx and
+    // thickness d, less the same face's near field: the points whose normal faces the same way
+    // as nx (dot > 0) integrated with `same` (of the 3-D distance) and the window, as
+    // far_exitance does; the points of the opposite face (dot <= 0) with `transmit`, T of the
+    // lateral distance rho = sqrt(s^2 - min(|v.nx|, d)^2) (v = x - p, s = |v|: on a flat slab's
+    // far face sqrt(s^2 - d^2)), with the window in rho, their part inside it as near_opposite
+    // (the integral of (1 - w) T) times the (1 - w)-weighted mean of their E_t. Nodes are
+    // aggregated per side: by their normal cone (or, for a one-sheeted node crossing the
+    // plane of nx, its axis); a node holding both faces of a sheet is opened.
+    Rgb far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx, double d,
+                           double r0, double h, double max_angle, const Rgb& near_opposite,
+                           std::size_t* visited = nullptr) const;
+    // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
+    Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
+                                 double d, double r0, double h, const Rgb& near_opposite) const;
 
     // The window: 0 below r0 - h, 1 above r0 + h, between them the C2 smootherstep
     // t^3 (6 t^2 - 15 t + 10) of t = (r - r0 + h) / 2h (on a grid of spacing h its
@@ -210,9 +232,14 @@ private:
         Vec3 split;          // centre of the node's bounds (its octants' common corner)
         double max_spacing;
     };
+    struct Cone {            // the node's normals: all within `angle` (radians) of `axis`
+        float axis[3];
+        float angle;
+    };
     struct Merge {           // while building: the weights of the centres (flux over channels, area)
         double wsum, area;
         Vec3 area_centre;
+        Vec3 nsum;           // area-weighted normal sum
     };
     struct Leaf {
         Vec3 p;
@@ -238,6 +265,8 @@ private:
     std::vector<Node> nodes_;
     std::vector<Agg> aggs_;
     std::vector<Aux> aux_;
+    std::vector<Cone> cones_;             // read only by far_exitance_sided
+    double thinnest_ = std::numeric_limits<double>::infinity();
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -277,6 +306,14 @@ public:
     virtual std::string describe() = 0;
     // Where the camera looks (default: everywhere).
     virtual ViewVolume view() { return ViewVolume(); }
+    // Distance from p (on the surface, outward unit normal n) along -n to the object's next
+    // surface crossing: the local thickness (infinity when the line leaves without crossing
+    // it again, e.g. an open surface; default: infinity, thin geometry unknown).
+    virtual double thickness(const Vec3& p, const Vec3& n) {
+        (void)p;
+        (void)n;
+        return std::numeric_limits<double>::infinity();
+    }
 };
 
 struct SubsurfaceSettings {
@@ -291,6 +328,9 @@ struct SubsurfaceSettings {
     double edge_fraction = 0.05;
     double tolerance = 0.02;   // refine where E_t departs from linear by this part of its maximum
     std::size_t max_points = 4000000;  // per object; refinement stops before exceeding it
+    // Thin geometry: each sample's thickness (SurfaceSampler::thickness) and, where an object
+    // is thinner than slab_threshold(), slab profiles (slab.h) instead of the half-space's.
+    bool thin = true;
 };
 
 
@@ -298,6 +338,7 @@ struct SubsurfaceSettings {
 struct CloudReport {
     bool unbounded = false;  // no finite bounding box: empty cloud
     bool thin = false;       // more than 10 % of the level-0 segments through it are shorter than mfp'
+    double thinnest = std::numeric_limits<double>::infinity();  // smallest sample thickness (if asked for)
     double extent = 0;       // largest side of the bounding box (scene units)
     Vec3 centre;             // of the bounding box
     int levels = 0;          // refinement levels used
@@ -316,6 +357,7 @@ struct SamplingPlan {
     double tolerance = 0.02;
     std::size_t max_points = 4000000;
     double mean_free_path = 0;  // for the thin-geometry count
+    bool thickness = false;     // ask the sampler for each sample's thickness
     ViewVolume view;
     double reach = 0;     // the profile's radius holding 99 % of Rd
 };
@@ -345,7 +387,12 @@ struct SubsurfaceStats {
     int max_levels = 0;
     double finest_spacing = 0;  // smallest spacing reached in any cloud (scene units), 0: none
     std::size_t unbounded = 0;  // objects that could not be sampled (no finite bounding box)
-    std::size_t thin = 0;       // objects thinner than the mean free path in > 10 % of places
+    std::size_t thin = 0;       // thin geometry off: objects thinner than the mean free path in > 10 % of places
+    // Thin geometry on: objects thinner than their finish's slab threshold somewhere, the
+    // thinnest sample found (scene units and transport mean free paths), lookups that used
+    // slab profiles.
+    std::size_t slab_objects = 0, slab_lookups = 0;
+    double thinnest = 0, thinnest_mfp = 0;  // 0: none
     std::vector<std::string> notes;  // per-object warnings (small objects), sorted
 };
 SubsurfaceStats subsurface_stats();
@@ -389,6 +436,15 @@ public:
     // sampler) and returns when it is done. An empty cloud is kept too (nothing to scatter).
     const PointCloud& cloud(const void* key, SurfaceSampler& sampler) const;
 
+    // Thin geometry: the thickness from which objects are treated as semi-infinite (slab.h
+    // slab_threshold at 0.5 %; scene units; 0 with thin geometry off), and whether a lookup on
+    // this cloud needs its point's thickness (some sample of it is thinner).
+    double slab_threshold() const { return slab_threshold_; }
+    bool wants_thickness(const PointCloud& cloud) const { return cloud.thinnest() < slab_threshold_; }
+    // The slab profiles used for a point of thickness d < slab_threshold() (d is rounded to one
+    // of 32 nodes per octave from 0.01 mean free paths up; built on first use, lock-free after).
+    const SlabProfiles& slab(double d) const;
+
     // The near/far split of this finish for a cloud of spacing h: R0 = 2h.
     static double near_radius(double h) { return 2.0 * h; }
     Rgb near_reflectance(double h) const { return profile_->near_reflectance(h); }
@@ -399,6 +455,11 @@ public:
     // is below the surface.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here) const;
+    // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
+    // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R); at or
+    // above it exactly the call above.
+    Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                 const Rgb& irradiance_here, double thickness) const;
 
 private:
     Dipole dipole_;
@@ -406,6 +467,15 @@ private:
     std::shared_ptr<const RadialProfile> model_;
     std::shared_ptr<const RdProfile> profile_;
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
+    // Thin geometry: threshold, the slab nodes (thickness d_k = slab_min_ 2^(k/32)), each built
+    // once under slab_mutex_ and read through its atomic pointer.
+    double slab_threshold_ = 0, slab_min_ = 0;
+    Rgb slab_scale_{1.0, 1.0, 1.0};  // per channel: the model's half-space total / the dipole's
+    struct SlabNode;
+    std::size_t slab_count_ = 0;
+    std::unique_ptr<std::atomic<const SlabNode*>[]> slab_nodes_;
+    mutable std::mutex slab_mutex_;
+    const SlabNode& slab_node(double d) const;
     struct Entry;
     struct Index;
     std::shared_ptr<const PointCloud> build(Entry& e, SurfaceSampler& sampler) const;
