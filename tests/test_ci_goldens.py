@@ -33,10 +33,21 @@ GONIO_SUBSET = gonio.Grid((20.0, 70.0), (60.0, 120.0), (37.5, 82.5), (32.5, 167.
 SWEEP_ANGLES = [(20, 300), (75, 225), (100, 90)]
 
 
-def test_golden_subset(fork, tmp_path):
+#: Goldens known to be stale on main, each with the reason; strict xfail: a re-blessed golden
+#: turns the mark into a failure, so it cannot outlive its reason.
+STALE = {
+    "dipole_preset": "golden blessed at 0bdf32f; later commits on main (2a091ed, 363efeb: thin geometry with "
+                     "profile exact) change the render: rel-RMSE 0.0072 > 0.001 on main's merged tree; "
+                     "re-bless after review (found by this subset; the thin-geometry owner's call)",
+}
+
+
+@pytest.mark.parametrize("scene", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=STALE[n]))
+                                   if n in STALE else n for n in GOLDEN_SUBSET])
+def test_golden_subset(fork, tmp_path, scene):
     known = {s.name for s in regress.load_scenes(regress.SCENES_DIR)}
     assert set(GOLDEN_SUBSET) <= known
-    assert regress.main(["--only", *GOLDEN_SUBSET, "--out", str(tmp_path / "out"), "-q"]) == 0
+    assert regress.main(["--only", scene, "--out", str(tmp_path / "out"), "-q", "--jobs", "1"]) == 0
 
 
 def test_gonio_off_grid_subset(fork):
