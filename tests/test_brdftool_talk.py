@@ -13,14 +13,7 @@ import pytest
 from harness.core import tables
 from harness.core.paths import REPO_ROOT, brdftool
 
-PLASTIC = "microfacet d=tr m=0.15 f=dielectric eta=1.5 kd=0.5,0.06,0.04 rho_s=0.5"
-
-
-def tool(*args, check=True):
-    p = subprocess.run([str(brdftool()), *map(str, args)], capture_output=True, text=True)
-    if check and p.returncode != 0:
-        raise AssertionError(f"brdftool {' '.join(map(str, args))}: {p.stderr}")
-    return p
+from tests.test_fitting import PLASTIC, tool  # one brdftool runner for the tool tests
 
 
 def test_fit_prints_progress_at_least_every_two_seconds():

@@ -120,6 +120,9 @@ plane { y, 0 finish { ambient 0 dipole { "Marble" } } }
     ("sigma_s_prime 1 sigma_a 0.1 ior 0", "eta"),
     ('"Marble" sample_spacing -1', "sample_spacing must be >= 0"),
     ('"Marble" error_bound 0', "error_bound must be in (0, 2]"),
+    ('"Marble" refine_levels -1', "refine_levels must be a whole number from 0 to 12"),
+    ('"Marble" refine_levels 2.5', "refine_levels must be a whole number from 0 to 12"),
+    ('"Marble" refine_levels 13', "refine_levels must be a whole number from 0 to 12"),
 ])
 def test_bad_dipole_values_are_scene_errors(fork, body, message):
     text = f"""#version 3.7;

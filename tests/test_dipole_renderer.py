@@ -194,24 +194,6 @@ sphere { <2.5, 0, 0>, 2 finish { dipole { "Marble" } } }
     assert len(re.findall(r"Dipole warning: sphere at", r.stderr)) == 1  # the 4-unit ball is not small
 
 
-@pytest.mark.parametrize("body, message", [
-    ('"Marble" refine_levels -1', "refine_levels must be a whole number from 0 to 12"),
-    ('"Marble" refine_levels 2.5', "refine_levels must be a whole number from 0 to 12"),
-    ('"Marble" refine_levels 13', "refine_levels must be a whole number from 0 to 12"),
-])
-def test_bad_refine_levels_are_scene_errors(fork, body, message):
-    text = f"""#version 3.7;
-global_settings {{ assumed_gamma 1.0 }}
-camera {{ location <0, 0, -5> look_at 0 }}
-sphere {{ 0, 1
-  finish {{ dipole {{ {body} }} }} }}
-"""
-    with pytest.raises(runner.RenderError) as e:
-        runner.render(text, fork, width=8, height=8)
-    assert message in str(e.value)
-    assert e.value.line == 5
-
-
 def test_a_sample_spacing_far_below_the_object_is_an_error_not_a_hang(fork):
     # 1e-5 units on a 2-unit ball: 1.2e11 lines. The render stops at once with the reason.
     text = MARBLE.format(globals="", dipole="sample_spacing 0.00001")

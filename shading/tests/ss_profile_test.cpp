@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "chandrasekhar_h.h"
 #include "shading/finish.h"
 #include "shading/radial_profile.h"
 #include "shading/ss_profile.h"
@@ -37,45 +38,8 @@ const ProfileTables& small_tables() {
     return *t;
 }
 
-// Chandrasekhar's H(1) for isotropic scattering by its integral equation
-// 1/H(mu) = sqrt(1 - w) + (w/2) int_0^1 mu' H(mu') / (mu + mu') dmu' (Gauss-Legendre), written
-// here as in transport_mc_test.cpp, independent of the library.
-double h_one(double w) {
-    const int n = 96;
-    std::vector<double> x(n), wt(n);
-    for (int i = 0; i < n; ++i) {
-        double z = std::cos(kPi * (i + 0.75) / (n + 0.5));
-        for (int it = 0; it < 100; ++it) {
-            double p1 = 1, p2 = 0;
-            for (int j = 1; j <= n; ++j) {
-                const double p3 = p2;
-                p2 = p1;
-                p1 = ((2 * j - 1) * z * p2 - (j - 1) * p3) / j;
-            }
-            const double pp = n * (z * p1 - p2) / (z * z - 1);
-            const double z1 = z;
-            z = z1 - p1 / pp;
-            if (std::fabs(z - z1) < 1e-15) {
-                x[i] = 0.5 * (1 - z);
-                wt[i] = 1.0 / ((1 - z * z) * pp * pp);
-                break;
-            }
-        }
-    }
-    const double s = std::sqrt(1.0 - w);
-    std::vector<double> h(n, 1.0);
-    auto eval = [&](double mu) {
-        double sum = 0;
-        for (int j = 0; j < n; ++j) sum += wt[j] * x[j] * h[j] / (mu + x[j]);
-        return 1.0 / (s + 0.5 * w * sum);
-    };
-    for (int it = 0; it < 3000; ++it) {
-        std::vector<double> nh(n);
-        for (int i = 0; i < n; ++i) nh[i] = eval(x[i]);
-        h = nh;
-    }
-    return eval(1.0);
-}
+// Chandrasekhar's H(1) for isotropic scattering (chandrasekhar_h.h, independent of the library).
+double h_one(double w) { return chandrasekhar_h(1.0, w); }
 
 void patch_checksum(std::vector<std::uint8_t>& b) {
     const std::uint32_t off = std::uint32_t(b[12]) | std::uint32_t(b[13]) << 8 | std::uint32_t(b[14]) << 16 | std::uint32_t(b[15]) << 24;
