@@ -22,6 +22,7 @@
 
 #include <unistd.h>
 
+#include "cli_options.h"
 #include "shading/finish.h"
 #include "shading/fit.h"
 #include "shading/merl.h"
@@ -32,9 +33,7 @@ using namespace shading;
 
 namespace {
 
-struct UsageError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
+using shading_tools::UsageError;
 
 constexpr uint64_t kMaxTableBytes = uint64_t(2) << 30;  // same limit as the loader's default
 
@@ -48,42 +47,11 @@ struct Command {
     std::function<int(struct Args&)> run;
 };
 
-struct Args {
+struct Args : shading_tools::Options {
     const Command* cmd = nullptr;
-    std::vector<std::string> pos;
-    std::map<std::string, std::string> opt;
     std::set<std::string> flags;
 
     bool has(const std::string& k) const { return opt.count(k) || flags.count(k); }
-    std::string str(const std::string& k, const std::string& def = "") const {
-        auto it = opt.find(k);
-        return it == opt.end() ? def : it->second;
-    }
-    double number(const std::string& k, double def) const {
-        auto it = opt.find(k);
-        if (it == opt.end()) return def;
-        char* end = nullptr;
-        double v = std::strtod(it->second.c_str(), &end);
-        if (it->second.empty() || *end != '\0' || !std::isfinite(v))
-            throw UsageError(k + ": not a number: '" + it->second + "'");
-        return v;
-    }
-    std::vector<double> list(const std::string& k, const std::vector<double>& def) const {
-        auto it = opt.find(k);
-        if (it == opt.end()) return def;
-        std::vector<double> out;
-        std::stringstream ss(it->second);
-        std::string item;
-        while (std::getline(ss, item, ',')) {
-            char* end = nullptr;
-            double v = std::strtod(item.c_str(), &end);
-            if (item.empty() || *end != '\0' || !std::isfinite(v))
-                throw UsageError(k + ": not a comma-separated list of numbers: '" + it->second + "'");
-            out.push_back(v);
-        }
-        if (out.empty()) throw UsageError(k + ": empty list");
-        return out;
-    }
     std::string output() const {
         std::string o = str("-o");
         if (o.empty()) throw UsageError("missing -o OUTPUT");

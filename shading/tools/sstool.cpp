@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_options.h"
 #include "shading/dipole.h"
 #include "shading/ss_profile.h"
 #include "shading/transport_mc.h"
@@ -21,9 +22,7 @@ using namespace shading;
 
 namespace {
 
-struct UsageError : std::runtime_error {
-    using std::runtime_error::runtime_error;
-};
+using shading_tools::UsageError;
 
 const char* kUsage =
     "usage: sstool COMMAND [options]\n"
@@ -47,38 +46,9 @@ const char* kUsage =
     "  version                           the generator version\n"
     "environment: SSTOOL_DEBUG=1 makes build print each albedo's tail and angular checks\n";
 
-struct Args {
-    std::vector<std::string> pos;
-    std::map<std::string, std::string> opt;
+struct Args : shading_tools::Options {
+    Args() { allow_inf = true; }
     bool flag(const std::string& k) const { return opt.count(k) > 0; }
-    std::string str(const std::string& k, const std::string& def = "") const {
-        auto it = opt.find(k);
-        return it == opt.end() ? def : it->second;
-    }
-    double number(const std::string& k, double def) const {
-        auto it = opt.find(k);
-        if (it == opt.end()) return def;
-        char* end = nullptr;
-        const double v = std::strtod(it->second.c_str(), &end);
-        if (it->second.empty() || *end != '\0' || std::isnan(v)) throw UsageError(k + ": not a number: '" + it->second + "'");
-        return v;
-    }
-    std::vector<double> list(const std::string& k, const std::vector<double>& def) const {
-        auto it = opt.find(k);
-        if (it == opt.end()) return def;
-        std::vector<double> out;
-        std::stringstream ss(it->second);
-        std::string item;
-        while (std::getline(ss, item, ',')) {
-            char* end = nullptr;
-            const double v = item == "inf" ? INFINITY : std::strtod(item.c_str(), &end);
-            if (item.empty() || (item != "inf" && *end != '\0') || std::isnan(v))
-                throw UsageError(k + ": not a comma-separated list of numbers: '" + it->second + "'");
-            out.push_back(v);
-        }
-        if (out.empty()) throw UsageError(k + ": empty list");
-        return out;
-    }
 };
 
 Args parse(int argc, char** argv, const std::map<std::string, bool>& known) {
