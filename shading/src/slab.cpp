@@ -2,6 +2,7 @@
 #include "shading/slab.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -124,6 +125,98 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
     // totals above are the independent check (SlabProfile tests).
     out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff);
     out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
+    return out;
+}
+
+SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& k,
+                                      int* tabulated) {
+    if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("make_exact_slab_profiles: thickness must be finite and > 0");
+    const ProfileTables* tables = model.slab_tables();
+    if (tabulated) *tabulated = 0;
+    if (!tables) return make_slab_profiles(dipole, d, k);
+    // Per channel: the tables' faces (shared: the profiles' functions outlive this call), or
+    // the multipole.
+    struct Channel {
+        std::shared_ptr<const ChannelProfile> r, t;
+        double st = 0, t_scale = 1;
+        SlabChannel multipole;
+    };
+    auto ch = std::make_shared<std::array<Channel, 3>>();
+    SlabProfiles out;
+    out.d = d;
+    double scale = kInf, cutoff = 0;
+    int from_tables = 0, scattering = 0;
+    for (int c = 0; c < 3; ++c) {
+        Channel& x = (*ch)[c];
+        const ChannelProfile* half = model.channel(c);
+        if (!half) continue;  // does not scatter: nothing diffuses
+        ++scattering;
+        const double st = model.sigma_t_prime(c);
+        try {
+            x.r = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 0);
+            x.t = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 1);
+        } catch (const std::invalid_argument&) {  // d outside the tables' slab nodes
+            x.r.reset();
+            x.t.reset();
+        }
+        if (x.r) {
+            ++from_tables;
+            x.st = st;
+            const double multi = x.t->total();
+            x.t_scale = multi > 0 ? (multi + x.t->single()) / multi : 1.0;
+            out.R_total[c] = x.r->total();
+            out.T_total[c] = x.t_scale * multi;
+            double reach = 0;
+            for (const ChannelProfile* f : {x.r.get(), x.t.get()})
+                if (f->total() > 0) reach = std::max(reach, std::min(f->radius_containing(1.0 - 1e-6), 1e6));
+            cutoff = std::max(cutoff, std::max(reach, 1.0) / st);
+            scale = std::min(scale, std::min(1.0 / st, d));
+        } else {
+            x.multipole = SlabChannel::make(dipole.channel(c), d);
+            if (x.multipole.empty) continue;
+            out.R_total[c] = k[c] * x.multipole.R_total();
+            out.T_total[c] = x.multipole.T_total();
+            scale = std::min(scale, x.multipole.z0);
+            cutoff = std::max(cutoff, x.multipole.cutoff);
+        }
+    }
+    if (tabulated) *tabulated = from_tables;
+    if (!(cutoff > 0)) scale = cutoff = d;  // every channel empty
+    scale = std::min(scale, cutoff);
+    auto same = [ch, k](double r) {
+        Rgb v;
+        for (int c = 0; c < 3; ++c) {
+            const Channel& x = (*ch)[c];
+            v[c] = x.r ? x.st * x.st * x.r->rd(r * x.st) : x.multipole.empty ? 0.0 : k[c] * x.multipole.R(r);
+        }
+        return v;
+    };
+    auto transmit = [ch](double rho) {
+        Rgb v;
+        for (int c = 0; c < 3; ++c) {
+            const Channel& x = (*ch)[c];
+            v[c] = x.t ? x.t_scale * x.st * x.st * x.t->rd(rho * x.st) : x.multipole.empty ? 0.0 : x.multipole.T(rho);
+        }
+        return v;
+    };
+    // Every channel from the tables: their disc integrals; otherwise numerically (as the multipole).
+    RdProfile::Fn same_disc, transmit_disc;
+    if (from_tables == scattering && scattering > 0) {
+        same_disc = [ch](double R) {
+            Rgb v;
+            for (int c = 0; c < 3; ++c)
+                if ((*ch)[c].r) v[c] = (*ch)[c].r->disc(R * (*ch)[c].st);
+            return v;
+        };
+        transmit_disc = [ch](double R) {
+            Rgb v;
+            for (int c = 0; c < 3; ++c)
+                if ((*ch)[c].t) v[c] = (*ch)[c].t_scale * (*ch)[c].t->disc(R * (*ch)[c].st);
+            return v;
+        };
+    }
+    out.same = std::make_shared<const RdProfile>(same, same_disc, scale, cutoff);
+    out.transmit = std::make_shared<const RdProfile>(transmit, transmit_disc, scale, cutoff);
     return out;
 }
 

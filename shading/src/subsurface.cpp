@@ -1197,7 +1197,13 @@ const Subsurface::SlabNode& Subsurface::slab_node(double d) const {
     std::lock_guard<std::mutex> lock(slab_mutex_);
     if (const SlabNode* n = slab_nodes_[i].load(std::memory_order_acquire)) return *n;
     auto made = std::make_unique<SlabNode>();
-    made->p = make_slab_profiles(dipole_, slab_min_ * std::exp2(double(i) / kSlabPerOctave), slab_scale_);
+    const double d_node = slab_min_ * std::exp2(double(i) / kSlabPerOctave);
+    // The exact profile with slab tables covering (g, eta): its own slabs (DIPOLE.md 6a), the
+    // multipole where a channel's thickness lies outside the tables' nodes.
+    if (const auto* exact = dynamic_cast<const ExactProfile*>(model_.get()))
+        made->p = make_exact_slab_profiles(*exact, dipole_, d_node, slab_scale_);
+    else
+        made->p = make_slab_profiles(dipole_, d_node, slab_scale_);
     const SlabNode* n = made.release();
     slab_nodes_[i].store(n, std::memory_order_release);
     return *n;
@@ -1322,6 +1328,14 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
     if (report.unbounded) ++g_unbounded;
     const bool slab_object = cloud->thinnest() < slab_threshold_;
     if (slab_object) ++g_slab_objects;
+    // The exact profile without slab tables for this medium: said once (statistics notes).
+    std::string slab_note;
+    if (slab_object) {
+        const auto* exact = dynamic_cast<const ExactProfile*>(model_.get());
+        if (exact && !exact->slab_tables())
+            slab_note = "Dipole: thin objects with profile exact use the multipole, scaled to the\n"
+                        "  exact total; slab tables subsurface_slabs.ssp:\n  " + exact->slab_gap();
+    }
     else if (report.thin && !(slab_threshold_ > 0)) ++g_thin;  // thin geometry off: the old warning
     int seen = g_max_levels.load();
     while (report.levels > seen && !g_max_levels.compare_exchange_weak(seen, report.levels)) {
@@ -1343,6 +1357,8 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
         Notes& n = notes();
         std::lock_guard<std::mutex> lock(n.mutex);
         if (!note.empty()) n.notes.push_back(note);
+        if (!slab_note.empty() && std::find(n.notes.begin(), n.notes.end(), slab_note) == n.notes.end())
+            n.notes.push_back(slab_note);
         const double finest = cloud->stats().finest_spacing;
         if (report.levels > 0 && (n.finest == 0 || finest < n.finest)) n.finest = finest;
         if (slab_object && (n.thinnest == 0 || cloud->thinnest() < n.thinnest)) {
