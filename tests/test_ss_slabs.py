@@ -107,9 +107,11 @@ def centre(r):
 def test_exact_sheet_lit_from_behind_matches_the_simulator():
     # pi L = Ft(1) E T Ft(1) (the convention of the multipole test, tests/test_dipole_thin.py),
     # T the simulator's diffuse transmittance of all orders (200 000 photons, standard error
-    # < 0.5 %). Stated before measuring: within 5 % (the issue's goal). What is left is mostly
-    # the exit distribution: the finish gives transmitted light the half-space's exit factor
-    # (pi L / M at normal 1.022 here, Ft(1) = 0.983).
+    # < 0.5 %). Stated before measuring: within 5 % (the issue's goal). Measured +5.0 / +3.9 /
+    # +2.4 %, almost all of it the exit convention: the finish gives transmitted light the
+    # half-space's exit factor (pi L / M at normal 1.022 here) where this reference has Ft(1) =
+    # 0.983 (+4.0 %); the tables' T is within 1 % of the simulator's here. Neither is the
+    # transmitted radiance itself (the simulator has no radiance estimator for the far face).
     ft2 = (1.0 - float(dipole_ref.fresnel_dielectric(1.0, ETA))) ** 2
     for t in (0.25, 1.0, 4.0):
         d = t * MFP
@@ -125,7 +127,8 @@ def test_exact_sheet_lit_from_behind_matches_the_simulator():
 def test_exact_thin_sheet_reflects_as_the_simulator_says():
     # Lit from the front, single scattering off (the finish's BRDF, not the slab): the thin /
     # thick pixel ratio against the simulator's multiple-scattering reflectance of the slab over
-    # the half-space's (200 000 photons each). Stated: within 3 %.
+    # the half-space's (200 000 photons each). Stated first: 3 %; measured +0.5 .. +0.8 %, so
+    # narrowed to 1.5 % (a regression band: R 1 % too large in the slab node goes red).
     plain = EXACT + " single_scatter off"
     thick = centre(sheet(30.0, 1000, plain))
     inf = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=200_000, seed=5)
@@ -135,7 +138,7 @@ def test_exact_thin_sheet_reflects_as_the_simulator_says():
         want = ref.multiple / inf.multiple
         print(f"exact sheet {t} mfp lit from the front: thin / thick {thin / thick:.4f}, MC {want:.4f} "
               f"({100 * (thin / thick / want - 1):+.2f} %)")
-        assert abs((thin / thick) / want - 1) < 0.03
+        assert abs((thin / thick) / want - 1) < 0.015
 
 
 def test_exact_thick_object_renders_as_before():

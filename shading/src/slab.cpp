@@ -162,15 +162,16 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         if (x.r) {
             ++from_tables;
             x.st = st;
-            const double multi = x.t->total();
-            x.t_scale = multi > 0 ? (multi + x.t->single()) / multi : 1.0;
+            // T: the tables' total of all orders in the multipole's radial shape (the tables'
+            // transmission profile is photon noise near rho = 0 beyond a few mfp: slab.h).
+            x.multipole = SlabChannel::make(dipole.channel(c), d);
+            const double t_all = x.t->total() + x.t->single(), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
+            x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
             out.R_total[c] = x.r->total();
-            out.T_total[c] = x.t_scale * multi;
-            double reach = 0;
-            for (const ChannelProfile* f : {x.r.get(), x.t.get()})
-                if (f->total() > 0) reach = std::max(reach, std::min(f->radius_containing(1.0 - 1e-6), 1e6));
-            cutoff = std::max(cutoff, std::max(reach, 1.0) / st);
-            scale = std::min(scale, std::min(1.0 / st, d));
+            out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;
+            if (x.r->total() > 0) cutoff = std::max(cutoff, std::min(x.r->radius_containing(1.0 - 1e-6), 1e6) / st);
+            cutoff = std::max(cutoff, std::max(x.multipole.cutoff, 1.0 / st));
+            scale = std::min(scale, std::min(1.0 / st, x.multipole.empty ? d : x.multipole.z0));
         } else {
             x.multipole = SlabChannel::make(dipole.channel(c), d);
             if (x.multipole.empty) continue;
@@ -195,12 +196,13 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         Rgb v;
         for (int c = 0; c < 3; ++c) {
             const Channel& x = (*ch)[c];
-            v[c] = x.t ? x.t_scale * x.st * x.st * x.t->rd(rho * x.st) : x.multipole.empty ? 0.0 : x.multipole.T(rho);
+            v[c] = x.multipole.empty ? 0.0 : (x.t ? x.t_scale : 1.0) * x.multipole.T(rho);
         }
         return v;
     };
-    // Every channel from the tables: their disc integrals; otherwise numerically (as the multipole).
-    RdProfile::Fn same_disc, transmit_disc;
+    // R with every channel from the tables: their disc integrals; otherwise numerically (as the
+    // multipole), and T always so.
+    RdProfile::Fn same_disc;
     if (from_tables == scattering && scattering > 0) {
         same_disc = [ch](double R) {
             Rgb v;
@@ -208,15 +210,9 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
                 if ((*ch)[c].r) v[c] = (*ch)[c].r->disc(R * (*ch)[c].st);
             return v;
         };
-        transmit_disc = [ch](double R) {
-            Rgb v;
-            for (int c = 0; c < 3; ++c)
-                if ((*ch)[c].t) v[c] = (*ch)[c].t_scale * (*ch)[c].t->disc(R * (*ch)[c].st);
-            return v;
-        };
     }
     out.same = std::make_shared<const RdProfile>(same, same_disc, scale, cutoff);
-    out.transmit = std::make_shared<const RdProfile>(transmit, transmit_disc, scale, cutoff);
+    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
     return out;
 }
 
