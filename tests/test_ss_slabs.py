@@ -105,40 +105,41 @@ def centre(r):
 
 
 def test_exact_sheet_lit_from_behind_matches_the_simulator():
-    # pi L = Ft(1) E T Ft(1) (the convention of the multipole test, tests/test_dipole_thin.py),
-    # T the simulator's diffuse transmittance of all orders (200 000 photons, standard error
-    # < 0.5 %). Stated before measuring: within 5 % (the issue's goal). Measured +5.0 / +3.9 /
-    # +2.4 %, almost all of it the exit convention: the finish gives transmitted light the
-    # half-space's exit factor (pi L / M at normal 1.022 here) where this reference has Ft(1) =
-    # 0.983 (+4.0 %); the tables' T is within 1 % of the simulator's here. Neither is the
-    # transmitted radiance itself (the simulator has no radiance estimator for the far face).
-    ft2 = (1.0 - float(dipole_ref.fresnel_dielectric(1.0, ETA))) ** 2
+    # The transmitted radiance at normal view: pi L = Ft(1) E x the simulator's pi L_t / E_entering
+    # through the far face within 18 degrees of its normal (extra["t_radiance_normal"], 400 000
+    # photons, all orders). Stated before measuring: within 5 % (the issue's goal). Measured
+    # -1.1 / -0.8 / -1.3 %, narrowed to 2 % (a regression band). Ft(1)^2 T_MC, the multipole
+    # test's convention, is printed too: it assumes the half-space's exit distribution, and a thin
+    # slab's transmitted light leaves more obliquely (pi L / M at normal 0.87 at 0.25 mfp).
+    ft1 = 1.0 - float(dipole_ref.fresnel_dielectric(1.0, ETA))
     for t in (0.25, 1.0, 4.0):
         d = t * MFP
         r = sheet(d, -1000)
-        ref = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=200_000, seed=3, thickness=d)
-        want, got = ft2 * ref.t_total, centre(r)
-        print(f"exact sheet {t} mfp lit from behind: pixel {got:.5f}, Ft(1)^2 T_MC {want:.5f} "
-              f"({100 * (got / want - 1):+.2f} %)")
-        assert abs(got / want - 1) < 0.05
+        ref = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=400_000, seed=3, thickness=d)
+        want, got = ft1 * ref.extra["t_radiance_normal"], centre(r)
+        print(f"exact sheet {t} mfp lit from behind: pixel {got:.5f}, Ft(1) pi L_t,MC {want:.5f} "
+              f"({100 * (got / want - 1):+.2f} %); Ft(1)^2 T_MC {ft1 * ft1 * ref.t_total:.5f}")
+        assert abs(got / want - 1) < 0.02
         assert "slab profiles" in r.stderr and "multipole" not in r.stderr
 
 
 def test_exact_thin_sheet_reflects_as_the_simulator_says():
-    # Lit from the front, single scattering off (the finish's BRDF, not the slab): the thin /
-    # thick pixel ratio against the simulator's multiple-scattering reflectance of the slab over
-    # the half-space's (200 000 photons each). Stated first: 3 %; measured +0.5 .. +0.8 %, so
-    # narrowed to 1.5 % (a regression band: R 1 % too large in the slab node goes red).
+    # Lit from the front, single scattering off (the finish's BRDF, not the slab): the pixel
+    # against Ft(1) x the simulator's multiple-scattering radiance at normal view (next-event
+    # estimator, 200 000 photons). Stated before measuring: within 5 %. Measured -0.2 / -1.6 /
+    # -4.2 % (the half-space exact profile of this medium renders -4.4 % of the same simulator:
+    # the 4 mfp slab is nearly a half-space).
+    ft1 = 1.0 - float(dipole_ref.fresnel_dielectric(1.0, ETA))
     plain = EXACT + " single_scatter off"
-    thick = centre(sheet(30.0, 1000, plain))
-    inf = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=200_000, seed=5)
+    view = mc_subsurface.view_directions([1.0])
     for t in (0.25, 1.0, 4.0):
-        thin = centre(sheet(t * MFP, 1000, plain))
-        ref = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=200_000, seed=5, thickness=t * MFP)
-        want = ref.multiple / inf.multiple
-        print(f"exact sheet {t} mfp lit from the front: thin / thick {thin / thick:.4f}, MC {want:.4f} "
-              f"({100 * (thin / thick / want - 1):+.2f} %)")
-        assert abs((thin / thick) / want - 1) < 0.015
+        got = centre(sheet(t * MFP, 1000, plain))
+        ref = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=200_000, seed=5, thickness=t * MFP,
+                                     views=view)
+        want = ft1 * ref.radiance_multiple[0]
+        print(f"exact sheet {t} mfp lit from the front: pixel {got:.5f}, Ft(1) pi L_MC {want:.5f} "
+              f"({100 * (got / want - 1):+.2f} %)")
+        assert abs(got / want - 1) < 0.05
 
 
 def test_exact_thick_object_renders_as_before():

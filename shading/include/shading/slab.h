@@ -8,6 +8,7 @@
 // shading/DIPOLE.md section "Thin geometry".
 #pragma once
 
+#include <functional>
 #include <memory>
 
 #include "shading/dipole.h"
@@ -62,6 +63,10 @@ struct SlabProfiles {
     double d = 0;
     Rgb R_total, T_total;
     std::shared_ptr<const RdProfile> same, transmit;
+    // Empty: the finish's half-space exit factor for both faces (the multipole). Set by
+    // make_exact_slab_profiles: pi L / M toward outside cosine cos_o of each face (the tables'
+    // R and T faces where they cover the channel, else the model's half-space factor).
+    std::function<void(double cos_o, Rgb* same, Rgb* opposite)> exit;
 };
 // `scale`: per channel, multiplies R (and its total): 1 for the dipole; for another half-space
 // model (the exact profile) its total over the dipole's (Subsurface), so that R meets that
