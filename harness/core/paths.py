@@ -188,6 +188,15 @@ def ss_profiles() -> Path:
     return path
 
 
+#: The exact slab tables of thin geometry `make brdf-data` builds (``SS_SLABS`` overrides).
+def ss_slabs() -> Path:
+    """The shipped exact slab tables, ``build/brdf_data/subsurface_slabs.ssp``."""
+    path = Path(os.environ.get("SS_SLABS") or REPO_ROOT / "build" / "brdf_data" / "subsurface_slabs.ssp")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: the exact slab tables are missing; `make brdf-data` builds them")
+    return path
+
+
 def include_dirs() -> list[Path]:
     """Include directories to pass with ``+L``: ``POVRAY_INCLUDE`` entries, then the standard one.
 

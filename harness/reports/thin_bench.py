@@ -5,6 +5,8 @@
   the harness Monte Carlo with slabs (``mc_subsurface.simulate(thickness=...)``; all scattering
   orders, isotropic, per unit entering power), d x alpha' x eta; skipped with a note where the
   Monte Carlo has no slabs;
+* **exact slab tables**: the shipped ``subsurface_slabs.ssp`` (``profile exact``), R and T of all
+  scattering orders per entering power, against the same Monte Carlo over the same grid;
 * **back-lit sheet**: a 50 mm wide sheet of sigma_s' = 1/mm, sigma_a = 0.05/mm, eta = 1.3 lit from
   behind at normal incidence, default sampling: centre pixel vs Ft(1)^2 T(d), and vs
   ``thin_geometry off`` (the half-space dipole);
@@ -62,6 +64,36 @@ def mc_table(photons: int) -> list[tuple]:
     return rows
 
 
+def exact_table(photons: int) -> list[tuple]:
+    """The shipped exact slab tables (multiple + single scattering) against the Monte Carlo."""
+    from harness.core import sstool as sst
+    from harness.core.paths import ss_slabs
+    try:
+        path = ss_slabs()
+    except FileNotFoundError as e:
+        print(f"exact slab tables: {e}; skipped")
+        return []
+    rows, worst = [], [0.0, 0.0]
+    print(f"exact slab tables ({path.name}) vs Monte Carlo (all orders, isotropic), per entering power")
+    print("alpha'  eta  d/mfp |   MC R     T    | tables R  T    | error R %  T %")
+    for ap in (0.5, 0.9, 0.99):
+        for eta in (1.0, 1.33, 1.5):
+            for t in (0.25, 1.0, 4.0, 16.0):
+                r = mc_subsurface.simulate(ap, 1.0 - ap, 0.0, eta, n_photons=photons, seed=7, thickness=t)
+                fr = sst.eval_profile(path, [ap], eta=eta, thickness=t, face="r")[0]
+                ft = sst.eval_profile(path, [ap], eta=eta, thickness=t, face="t")[0]
+                R, T = fr["total"] + fr["single"], ft["total"] + ft["single"]
+                eR, eT = R / r.total - 1.0, (T / r.t_total - 1.0) if r.t_total > 0 else float("nan")
+                worst[0] = max(worst[0], abs(eR))
+                if r.t_total > 1e-3:
+                    worst[1] = max(worst[1], abs(eT))
+                rows.append((ap, eta, t, r.total, r.t_total, R, T, eR, eT))
+                print(f"{ap:6.2f} {eta:5.2f} {t:5.2f} | {r.total:.4f} {r.t_total:.4f} | {R:.4f} {T:.4f} | "
+                      f"{100 * eR:+6.2f} {100 * eT:+6.2f}", flush=True)
+    print(f"  worst |R| {100 * worst[0]:.2f} %, |T| {100 * worst[1]:.2f} % (where T_MC > 1e-3)")
+    return rows
+
+
 def centre(res) -> float:
     img = res.image[..., 0].astype(np.float64)
     h, w = img.shape
@@ -79,8 +111,8 @@ def sheets() -> None:
                                    float_exr=True, threads=2))
         want = ft2 * dipole_ref.slab_totals(ch, d)[1]
         print(f"  d = {t:4.2f} mfp: pixel {on:.5f}, diffusion {want:.5f} ({100 * (on / want - 1):+.2f} %); off {off:.5f}")
-        # the exact profile (its slab: the multipole scaled to the exact half-space total) against
-        # the Monte Carlo's diffuse transmittance in the same convention, Ft(1)^2 T_MC
+        # the exact profile (its slab: the exact slab tables, subsurface_slabs.ssp) against the
+        # Monte Carlo's diffuse transmittance in the same convention, Ft(1)^2 T_MC
         if "thickness" in inspect.signature(mc_subsurface.simulate).parameters:
             try:
                 ex = centre(runner.render(sheet_scene(d, -1000).replace(" profile dipole", " profile exact"), "fork",
@@ -88,10 +120,12 @@ def sheets() -> None:
             except runner.RenderError as e:
                 print(f"    profile exact: not available ({str(e).splitlines()[0]})")
                 continue
-            mc = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=20000, seed=3, thickness=d)
+            mc = mc_subsurface.simulate(SIGMA_S_PRIME, SIGMA_A, 0.0, ETA, n_photons=400000, seed=3, thickness=d)
             mc_want = ft2 * mc.t_total
-            print(f"    profile exact: pixel {ex:.5f}; Ft(1)^2 T_MC {mc_want:.5f} ({100 * (ex / mc_want - 1):+.2f} %); "
-                  f"multipole vs MC {100 * (want / mc_want - 1):+.2f} %")
+            rad = math.sqrt(ft2) * mc.extra.get("t_radiance_normal", float("nan"))
+            print(f"    profile exact: pixel {ex:.5f}; MC transmitted radiance Ft(1) pi L_t {rad:.5f} "
+                  f"({100 * (ex / rad - 1):+.2f} %); Ft(1)^2 T_MC {mc_want:.5f} ({100 * (ex / mc_want - 1):+.2f} %); "
+                  f"multipole vs Ft(1)^2 T_MC {100 * (want / mc_want - 1):+.2f} %")
 
 
 def cost(repeat: int) -> None:
@@ -114,6 +148,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if not args.no_mc:
         mc_table(args.photons)
+        exact_table(max(args.photons, 200000))
     sheets()
     cost(args.repeat)
     return 0

@@ -47,7 +47,9 @@ std::string num(double v) {
 }
 }  // namespace
 
-ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables) : tables_(std::move(tables)) {
+ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
+                           std::shared_ptr<const ProfileTables> slab_tables)
+    : tables_(std::move(tables)), slab_tables_(std::move(slab_tables)) {
     const std::string bad = m.validate();
     if (!bad.empty()) throw std::invalid_argument("dipole medium: " + bad);
     if (!tables_) throw std::invalid_argument("exact profile: no tables");
@@ -63,6 +65,7 @@ ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables>
         const double st = sp + sa;
         if (!(st > 0) || !(sp > 0)) continue;  // no scattering: nothing diffuses
         double g = m.g[c];
+        g_[c] = g;
         const double gc = std::clamp(g, s.g.front(), s.g.back());
         if (gc != g) {
             auto it = std::find_if(clamped.begin(), clamped.end(), [&](const auto& p) { return p.first == g; });
@@ -74,6 +77,15 @@ ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables>
         // all but 1e-6 of the channel; without absorption a power-law tail, capped at 1e6 mfp'
         const double r = std::min(ch_[c]->radius_containing(1.0 - 1e-6), 1e6);
         cutoff_ = std::max(cutoff_, r / st_[c]);
+    }
+    // Slab tables: every scattering channel's (g, eta) inside them (thickness: per node, slab.h).
+    if (!slab_tables_) {
+        slab_gap_ = "no slab tables";
+    } else if (slab_tables_->faces < 2) {
+        slab_gap_ = "the slab tables have no transmission face";
+    } else {
+        for (int c = 0; c < 3 && slab_gap_.empty(); ++c)
+            if (ch_[c]) slab_gap_ = ChannelProfile::range_error(*slab_tables_, g_[c], m.eta, 1.0);
     }
     for (const auto& [g, channels] : clamped) {
         const double gc = std::clamp(g, s.g.front(), s.g.back());

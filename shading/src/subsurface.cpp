@@ -872,8 +872,9 @@ Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0
 
 Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                    double d, double r0, double h, double max_angle, const Rgb& near_opposite,
-                                   std::size_t* visited) const {
-    Rgb sum;
+                                   std::size_t* visited, Rgb* opposite) const {
+    Rgb sum, opp_sum;  // the opposite face's part of sum (added to both: sum's order as before)
+    if (opposite) *opposite = Rgb(0.0);
     if (nodes_.empty()) return sum;
     const double inner2 = sqr(std::max(0.0, r0 - h)), outer = r0 + h, outer2 = outer * outer;
     const double d2 = d * d;
@@ -920,7 +921,11 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& trans
                 near_area += (1.0 - w) * points_[i].area;
                 near_flux += s.flux * (1.0 - w);
             }
-            if (w > 0) sum += transmit.rd(rho) * s.flux * w;
+            if (w > 0) {
+                const Rgb t = transmit.rd(rho) * s.flux * w;
+                sum += t;
+                opp_sum += t;
+            }
             return;
         }
         if (r2 <= inner2 || r2 > cut_same2) return;
@@ -1005,9 +1010,13 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& trans
                 const double a = 0.5 * uCu, b = 0.5 * std::max(0.0, C[0] + C[1] + C[2] - nCn - uCu) / rho;
                 Rgb f0, f1, f2;
                 transmit.eval(rho, &f0, &f1, &f2);
-                sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
-                sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
-                sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
+                const Rgb t(std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r,
+                            std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g,
+                            std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b);
+                sum.r += t.r;
+                sum.g += t.g;
+                sum.b += t.b;
+                opp_sum += t;
                 continue;
             }
         }
@@ -1017,7 +1026,12 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& trans
         }
     }
     if (visited) *visited += opened;
-    if (near_area > 0) sum += near_opposite * near_flux * (1.0 / near_area);
+    if (near_area > 0) {
+        const Rgb t = near_opposite * near_flux * (1.0 / near_area);
+        sum += t;
+        opp_sum += t;
+    }
+    if (opposite) *opposite = opp_sum;
     return sum;
 }
 
@@ -1197,7 +1211,13 @@ const Subsurface::SlabNode& Subsurface::slab_node(double d) const {
     std::lock_guard<std::mutex> lock(slab_mutex_);
     if (const SlabNode* n = slab_nodes_[i].load(std::memory_order_acquire)) return *n;
     auto made = std::make_unique<SlabNode>();
-    made->p = make_slab_profiles(dipole_, slab_min_ * std::exp2(double(i) / kSlabPerOctave), slab_scale_);
+    const double d_node = slab_min_ * std::exp2(double(i) / kSlabPerOctave);
+    // The exact profile with slab tables covering (g, eta): its own slabs (DIPOLE.md 6a), the
+    // multipole where a channel's thickness lies outside the tables' nodes.
+    if (const auto* exact = dynamic_cast<const ExactProfile*>(model_.get()))
+        made->p = make_exact_slab_profiles(*exact, dipole_, d_node, slab_scale_);
+    else
+        made->p = make_slab_profiles(dipole_, d_node, slab_scale_);
     const SlabNode* n = made.release();
     slab_nodes_[i].store(n, std::memory_order_release);
     return *n;
@@ -1322,6 +1342,14 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
     if (report.unbounded) ++g_unbounded;
     const bool slab_object = cloud->thinnest() < slab_threshold_;
     if (slab_object) ++g_slab_objects;
+    // The exact profile without slab tables for this medium: said once (statistics notes).
+    std::string slab_note;
+    if (slab_object) {
+        const auto* exact = dynamic_cast<const ExactProfile*>(model_.get());
+        if (exact && !exact->slab_tables())
+            slab_note = "Dipole: thin objects with profile exact use the multipole, scaled to the\n"
+                        "  exact total; slab tables subsurface_slabs.ssp:\n  " + exact->slab_gap();
+    }
     else if (report.thin && !(slab_threshold_ > 0)) ++g_thin;  // thin geometry off: the old warning
     int seen = g_max_levels.load();
     while (report.levels > seen && !g_max_levels.compare_exchange_weak(seen, report.levels)) {
@@ -1343,6 +1371,8 @@ std::shared_ptr<const PointCloud> Subsurface::build(Entry& e, SurfaceSampler& sa
         Notes& n = notes();
         std::lock_guard<std::mutex> lock(n.mutex);
         if (!note.empty()) n.notes.push_back(note);
+        if (!slab_note.empty() && std::find(n.notes.begin(), n.notes.end(), slab_note) == n.notes.end())
+            n.notes.push_back(slab_note);
         const double finest = cloud->stats().finest_spacing;
         if (report.levels > 0 && (n.finest == 0 || finest < n.finest)) n.finest = finest;
         if (slab_object && (n.thinnest == 0 || cloud->thinnest() < n.thinnest)) {
@@ -1450,14 +1480,19 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     std::size_t visited = 0;
     Rgb near_same, near_opposite;
     slab.near(h, &near_same, &near_opposite);
+    Rgb opposite;
     Rgb m = cloud.far_exitance_sided(*slab.p.same, *slab.p.transmit, x, n, slab.p.d, r0, h, settings_.max_angle,
-                                     near_opposite, &visited);
+                                     near_opposite, &visited, &opposite);
     LookupCounter& c = thread_counter();
     bump(c.lookups, 1);
     bump(c.visited, visited);
     bump(c.slab, 1);
     m += irradiance_here * near_same;
-    return m * model_->exit_factor(cos_o);
+    if (!slab.p.exit) return m * model_->exit_factor(cos_o);
+    // The exact slab tables: each face's own exit distribution (DIPOLE.md 6a).
+    Rgb same_exit, opposite_exit;
+    slab.p.exit(cos_o, &same_exit, &opposite_exit);
+    return (m - opposite) * same_exit + opposite * opposite_exit;
 }
 
 // ---------------------------------------------------------------- BRDFs

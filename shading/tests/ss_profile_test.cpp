@@ -312,3 +312,83 @@ TEST(ProfileTables, InversionFindsTheReducedAlbedoOfATotal) {
     EXPECT_EQ(alpha_prime_for_total(t, 0.0, 0.0, 1.0, single), 0.0);
     EXPECT_EQ(alpha_prime_for_total(t, 2.0, 0.0, 1.0, single), 1.0);
 }
+
+// ---------------------------------------------------------------- thin geometry: exact slab tables
+
+namespace {
+
+// Slab tables g 0, eta {1, 1.5}, thickness {0.5, 1, 2} mfp, few photons (well under a second).
+std::shared_ptr<const ProfileTables> small_slab_tables() {
+    static std::shared_ptr<const ProfileTables> t = [] {
+        ProfileBuildSettings s;
+        s.g = {0.0};
+        s.eta = {1.0, 1.5};
+        s.thickness = {0.5, 1.0, 2.0};
+        s.photons = 3000;
+        s.short_photons = 10000;
+        s.threads = 2;
+        return std::shared_ptr<const ProfileTables>(build_profile_tables(s));
+    }();
+    return t;
+}
+
+std::shared_ptr<const ProfileTables> small_tables_ptr() {
+    return std::shared_ptr<const ProfileTables>(std::shared_ptr<const ProfileTables>(), &small_tables());
+}
+
+}  // namespace
+
+// Which media the slab tables cover, and why not (the statistics' note).
+TEST(ExactSlabs, CoverageAndItsReason) {
+    const Medium m = Medium::from_reduced(Rgb(1.0, 2.0, 4.0), Rgb(0.05, 0.1, 0.4), 1.2, 1.0);
+    ExactProfile covered(m, small_tables_ptr(), small_slab_tables());
+    EXPECT_NE(covered.slab_tables(), nullptr);
+    EXPECT_EQ(covered.slab_gap(), "");
+    ExactProfile none(m, small_tables_ptr());
+    EXPECT_EQ(none.slab_tables(), nullptr);
+    EXPECT_EQ(none.slab_gap(), "no slab tables");
+    Medium aniso = m;
+    aniso.sigma_s = Rgb(2.0, 4.0, 8.0);
+    aniso.g = Rgb(0.5);
+    ExactProfile outside(aniso, small_tables_ptr(), small_slab_tables());
+    EXPECT_EQ(outside.slab_tables(), nullptr);
+    EXPECT_NE(outside.slab_gap().find("g = 0.5 is outside the tables' range [0, 0]"), std::string::npos) << outside.slab_gap();
+    ExactProfile half_only(m, small_tables_ptr(), small_tables_ptr());  // semi-infinite tables as slabs
+    EXPECT_EQ(half_only.slab_tables(), nullptr);
+    EXPECT_EQ(half_only.slab_gap(), "the slab tables have no transmission face");
+}
+
+// Per channel: R and T from the tables where the thickness (transport mfp) lies in their nodes,
+// the scaled multipole elsewhere. The profiles integrate (RdProfile's own quadrature of the
+// multipole's T shape, independent of the tables' totals) to the totals within 0.5 %.
+TEST(ExactSlabs, ProfilesCarryTheTablesTotals) {
+    // sigma_t' = 1.05, 2.1, 4.4 per unit: d = 0.6 units is 0.63, 1.26, 2.64 mfp: the blue
+    // channel is beyond the tables' last node (2 mfp) and takes the multipole.
+    const Medium m = Medium::from_reduced(Rgb(1.0, 2.0, 4.0), Rgb(0.05, 0.1, 0.4), 1.2, 1.0);
+    const ExactProfile model(m, small_tables_ptr(), small_slab_tables());
+    const Dipole dipole(m);
+    const Rgb scale(0.9, 0.8, 0.7);
+    const double d = 0.6;
+    int tabulated = -1;
+    const SlabProfiles p = make_exact_slab_profiles(model, dipole, d, scale, &tabulated);
+    EXPECT_EQ(tabulated, 2);
+    const SlabProfiles multipole = make_slab_profiles(dipole, d, scale);
+    for (int c = 0; c < 2; ++c) {
+        const double st = model.sigma_t_prime(c);
+        const ChannelProfile r(*small_slab_tables(), model.channel(c)->alpha_prime(), 0.0, 1.2, d * st, 0);
+        const ChannelProfile t(*small_slab_tables(), model.channel(c)->alpha_prime(), 0.0, 1.2, d * st, 1);
+        EXPECT_DOUBLE_EQ(p.R_total[c], r.total()) << c;
+        EXPECT_NEAR(p.T_total[c], t.total() + t.single(), 1e-12) << c;
+        EXPECT_GT(t.single(), 0.0) << c;
+        EXPECT_NEAR(p.same->total()[c] / p.R_total[c], 1.0, 0.005) << c;
+        EXPECT_NEAR(p.transmit->total()[c] / p.T_total[c], 1.0, 0.005) << c;
+        EXPECT_NE(p.R_total[c], multipole.R_total[c]) << c;
+    }
+    EXPECT_DOUBLE_EQ(p.R_total[2], multipole.R_total[2]);
+    EXPECT_DOUBLE_EQ(p.T_total[2], multipole.T_total[2]);
+    // Without slab tables: the scaled multipole, every channel.
+    const ExactProfile bare(m, small_tables_ptr());
+    const SlabProfiles q = make_exact_slab_profiles(bare, dipole, d, scale, &tabulated);
+    EXPECT_EQ(tabulated, 0);
+    for (int c = 0; c < 3; ++c) EXPECT_DOUBLE_EQ(q.R_total[c], multipole.R_total[c]);
+}

@@ -69,7 +69,11 @@ public:
     // lengths scaled by sigma_t' = (sigma_s' + sigma_a) mm_per_unit. A g outside the tables is
     // clamped to their range at the same reduced albedo (similarity; listed in notes()). Throws
     // std::invalid_argument for an invalid medium or an eta outside the tables.
-    ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables);
+    // `slab_tables` (optional; make brdf-data ships subsurface_slabs.ssp): exact reflection and
+    // transmission faces of slabs for thin geometry (slab.h make_exact_slab_profiles), used
+    // where they cover every scattering channel's (g, eta); slab_gap() says why they don't.
+    ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
+                 std::shared_ptr<const ProfileTables> slab_tables = nullptr);
     Rgb rd(double r) const override;
     Rgb rd_disc(double R) const override;
     Rgb total() const override;
@@ -84,11 +88,18 @@ public:
     // The channel in transport units (nullptr for a channel that does not scatter).
     const ChannelProfile* channel(int c) const { return ch_[c].get(); }
     double sigma_t_prime(int c) const { return st_[c]; }  // per scene unit
+    double g(int c) const { return g_[c]; }                 // the medium's (not clamped)
+    double eta() const { return eta_; }
+    // The slab tables when they cover (g, eta) of every scattering channel, else nullptr; then
+    // slab_gap() says why (no file, or the g / ior outside it) for the statistics.
+    const ProfileTables* slab_tables() const { return slab_gap_.empty() ? slab_tables_.get() : nullptr; }
+    const std::string& slab_gap() const { return slab_gap_; }
 
 private:
-    std::shared_ptr<const ProfileTables> tables_;
+    std::shared_ptr<const ProfileTables> tables_, slab_tables_;
     std::unique_ptr<ChannelProfile> ch_[3];
-    double st_[3] = {0, 0, 0};
+    double st_[3] = {0, 0, 0}, g_[3] = {0, 0, 0};
+    std::string slab_gap_;
     double eta_ = 1;
     double cutoff_ = 0;
     std::vector<std::string> notes_;

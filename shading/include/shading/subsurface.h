@@ -193,10 +193,11 @@ public:
     // far face sqrt(s^2 - d^2)), with the window in rho, their part inside it as near_opposite
     // (the integral of (1 - w) T) times the (1 - w)-weighted mean of their E_t. Nodes are
     // aggregated per side: by their normal cone (or, for a one-sheeted node crossing the
-    // plane of nx, its axis); a node holding both faces of a sheet is opened.
+    // plane of nx, its axis); a node holding both faces of a sheet is opened. `opposite`
+    // (optional): the opposite face's part of the result.
     Rgb far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx, double d,
                            double r0, double h, double max_angle, const Rgb& near_opposite,
-                           std::size_t* visited = nullptr) const;
+                           std::size_t* visited = nullptr, Rgb* opposite = nullptr) const;
     // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
     Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                  double d, double r0, double h, const Rgb& near_opposite) const;
