@@ -35,11 +35,10 @@ SWEEP_ANGLES = [(20, 300), (75, 225), (100, 90)]
 
 #: Goldens known to be stale on main, each with the reason; strict xfail: a re-blessed golden
 #: turns the mark into a failure, so it cannot outlive its reason.
-STALE = {
-    "dipole_preset": "golden blessed at 0bdf32f; later commits on main (2a091ed, 363efeb: thin geometry with "
-                     "profile exact) change the render: rel-RMSE 0.0072 > 0.001 on main's merged tree; "
-                     "re-bless after review (found by this subset; the thin-geometry owner's call)",
-}
+# Goldens known not to match main's render, each with its reason (a strict xfail: it must come
+# out once the golden is re-blessed). None now: dipole_preset was re-blessed with the exact slab
+# tables (thin geometry) after review.
+STALE: dict[str, str] = {}
 
 
 @pytest.mark.parametrize("scene", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=STALE[n]))
