@@ -62,32 +62,24 @@ SlabChannel SlabChannel::make(const DipoleChannel& ch, double d) {
     return c;
 }
 
-double SlabChannel::R(double r) const {
+// Donner & Jensen 2005: (P / 4 pi) sum_i [ term(z_r,i) - term(z_v,i) ], the depths measured from
+// the entry face (R) or from the opposite face, d - z (T).
+double SlabChannel::image_sum(double r, bool opposite) const {
     if (empty) return 0.0;
     r = std::fabs(r);
     if (!(r < cutoff)) return 0.0;
     const double L = d + 2 * zb, s = sigma_tr;
     double sum = 0;
-    // Donner & Jensen 2005: sum_i [ term(z_r,i) - term(z_v,i) ]
     for (int i = -pairs; i <= pairs; ++i) {
         const double zr = 2.0 * i * L + z0, zv = 2.0 * i * L - z0 - 2.0 * zb;
-        sum += source_term(r, zr, s) - source_term(r, zv, s);
+        sum += opposite ? source_term(r, d - zr, s) - source_term(r, d - zv, s)
+                        : source_term(r, zr, s) - source_term(r, zv, s);
     }
     return std::max(0.0, power / (4.0 * kPi) * sum);
 }
 
-double SlabChannel::T(double r) const {
-    if (empty) return 0.0;
-    r = std::fabs(r);
-    if (!(r < cutoff)) return 0.0;
-    const double L = d + 2 * zb, s = sigma_tr;
-    double sum = 0;
-    for (int i = -pairs; i <= pairs; ++i) {
-        const double zr = 2.0 * i * L + z0, zv = 2.0 * i * L - z0 - 2.0 * zb;
-        sum += source_term(r, d - zr, s) - source_term(r, d - zv, s);
-    }
-    return std::max(0.0, power / (4.0 * kPi) * sum);
-}
+double SlabChannel::R(double r) const { return image_sum(r, false); }
+double SlabChannel::T(double r) const { return image_sum(r, true); }
 
 double SlabChannel::R_total() const {
     if (empty) return 0.0;

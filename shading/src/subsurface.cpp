@@ -85,6 +85,26 @@ std::string fmt3(double v) {
     return buf;
 }
 
+// The profile averaged over an aggregate's points, to second order: f(|x - p|) ~ f(d) +
+// (1/2) tr(H Sigma), H the Hessian in p: f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d (f', f''
+// tabulated with f), Sigma the points' covariance `cov` (xx yy zz xy xz yz); v = c - x, dc2 =
+// |v|^2. Times the aggregate's flux, never below 0 (the expansion can undershoot where Rd ~ 0).
+Rgb aggregate_exitance(const RdProfile& rd, const double* C, const Rgb& flux, const Vec3& v, double dc2) {
+    const double dc = std::sqrt(dc2), inv = 1.0 / dc;
+    const Vec3 u = v * inv;
+    const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
+                       u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
+                       u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
+    const double a = 0.5 * uCu, b = 0.5 * (C[0] + C[1] + C[2] - uCu) * inv;
+    Rgb f0, f1, f2;
+    rd.eval(dc, &f0, &f1, &f2);
+    Rgb out;
+    out.r = std::max(0.0, f0.r + a * f2.r + b * f1.r) * flux.r;
+    out.g = std::max(0.0, f0.g + a * f2.g + b * f1.g) * flux.g;
+    out.b = std::max(0.0, f0.b + a * f2.b + b * f1.b) * flux.b;
+    return out;
+}
+
 }  // namespace
 
 SubsurfaceStats subsurface_stats() {
@@ -836,21 +856,10 @@ Rgb PointCloud::far_exitance(const RdProfile& rd, const Vec3& x, double r0, doub
             const Vec3 v = g.centre - x;
             const double dc2 = dot(v, v);
             if (double(nd.diag2) < angle2 * std::min(rd.angle_gain2(dc2), gain_cap) * dc2) {
-                // f(|x - p|) averaged over the node ~ f(d) + (1/2) tr(H Sigma), H the Hessian
-                // in p: f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d (f', f'' tabulated with f).
-                const double dc = std::sqrt(dc2), inv = 1.0 / dc;
-                const Vec3 u = v * inv;
-                const double* C = g.cov;
-                const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
-                                   u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
-                                   u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
-                const double a = 0.5 * uCu, b = 0.5 * (C[0] + C[1] + C[2] - uCu) * inv;
-                Rgb f0, f1, f2;
-                rd.eval(dc, &f0, &f1, &f2);
-                // the expansion can undershoot where Rd is ~0: never below 0
-                sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
-                sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
-                sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
+                const Rgb e = aggregate_exitance(rd, g.cov, g.flux, v, dc2);
+                sum.r += e.r;
+                sum.g += e.g;
+                sum.b += e.b;
                 continue;
             }
         }
@@ -972,18 +981,10 @@ Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& trans
             const Vec3 v = g.centre - x;
             const double dc2 = dot(v, v);
             if (double(nd.diag2) < angle2 * std::min(same.angle_gain2(dc2), gain_cap) * dc2) {
-                const double dc = std::sqrt(dc2), inv = 1.0 / dc;
-                const Vec3 u = v * inv;
-                const double* C = g.cov;
-                const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
-                                   u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
-                                   u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
-                const double a = 0.5 * uCu, b = 0.5 * (C[0] + C[1] + C[2] - uCu) * inv;
-                Rgb f0, f1, f2;
-                same.eval(dc, &f0, &f1, &f2);
-                sum.r += std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r;
-                sum.g += std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g;
-                sum.b += std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b;
+                const Rgb e = aggregate_exitance(same, g.cov, g.flux, v, dc2);
+                sum.r += e.r;
+                sum.g += e.g;
+                sum.b += e.b;
                 continue;
             }
         } else if (agg_side == 2) {

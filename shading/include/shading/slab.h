@@ -48,6 +48,7 @@ struct SlabChannel {
     static SlabChannel make(const DipoleChannel& ch, double d);
     double R(double r) const;  // per scene unit^2
     double T(double r) const;  // per scene unit^2, r the lateral distance from the entry point
+    double image_sum(double r, bool opposite) const;  // R (false) or T (true)
     // Totals in closed form: the laterally integrated (1-D) diffusion equation with the same
     // source and Dirichlet conditions at both extrapolated boundaries, a = z0 + zb, b = L - a:
     //     R_total = P sinh(s b) cosh(s zb) / sinh(s L),  T_total = P sinh(s a) cosh(s zb) / sinh(s L)
