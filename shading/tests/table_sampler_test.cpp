@@ -3,9 +3,11 @@
 // unbiasedness against an independent integration, support, memory and sharing.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -73,6 +75,86 @@ TEST(AcosApprox, WithinBoundMonotoneAndExactAtTheEnds) {
     EXPECT_EQ(acos_approx(std::nan("")), kPi / 2);
     // Both halves meet: acos(-x) = pi - acos(x) to the last bit.
     for (double x : {1e-300, 1e-9, 0.3, 0.7071, 0.999999}) EXPECT_EQ(acos_approx(-x), kPi - acos_approx(x)) << x;
+}
+
+TEST(AcosApprox, PairGivesTheBitsOfTwoCalls) {
+    // acos_approx2 (two lanes of one SSE2 register) against acos_approx, bit for bit, over
+    // the whole domain and its edges: signed zeros, +-1, beyond +-1, infinities and NaN.
+    std::vector<double> xs = {0.0, -0.0, 1.0, -1.0, 1.0 + 1e-16, -1.0 - 1e-16, 1.5, -7.0, 1e-300, -1e-300,
+                              std::nextafter(1.0, 0.0), std::nextafter(-1.0, 0.0), 0.5, -0.5, 0.7071067811865476,
+                              HUGE_VAL, -HUGE_VAL, std::nan("")};
+    Rng rng(77);
+    for (int i = 0; i < 200000; ++i) xs.push_back(2.2 * rng() - 1.1);
+    for (size_t i = 0; i < xs.size(); ++i) {
+        const double x = xs[i], y = xs[(i * 7919 + 13) % xs.size()];
+        double ax, ay;
+        acos_approx2(x, y, &ax, &ay);
+        const double ex = acos_approx(x), ey = acos_approx(y);
+        ASSERT_EQ(std::memcmp(&ax, &ex, sizeof ax), 0) << x << " " << ax << " " << ex;
+        ASSERT_EQ(std::memcmp(&ay, &ey, sizeof ay), 0) << y << " " << ay << " " << ey;
+    }
+}
+
+TEST(TableLookup, CosineLookupFindsTheRowsAndWeightsOfItsDefinition) {
+    // prepare_iso_cos (both axes located at once on the renderer's path) against the layout
+    // written out here: theta = acos_approx(cos) in degrees over the step, clamped to
+    // [0, n - 1], cell (min(floor x, n - 2), +1), weight x minus the cell; folded rows in
+    // numpy.triu_indices order. Includes lights at the pole, at grazing, along and against
+    // the viewer's azimuth, and out-of-range and NaN cosines.
+    for (bool fold : {false, true})
+        for (double step : {1.0, 2.0, 5.0}) {
+            auto t = make_table("microfacet d=beckmann m=0.2 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8", step, fold);
+            const TableGeometry& g = t->geometry();
+            const uint32_t nt = g.n[0], np = g.n[2];
+            auto axis = [&](double c, uint32_t n, double step_deg) {
+                double x = acos_approx(c) * (180.0 / kPi) * (1.0 / step_deg);
+                x = x > 0 ? std::min(x, double(n - 1)) : 0.0;
+                const uint32_t i0 = std::min(uint32_t(x), n - 2);
+                return std::make_pair(i0, x - double(i0));
+            };
+            auto row = [&](uint32_t i, uint32_t r, uint32_t p) {
+                uint64_t cell;
+                if (!fold) {
+                    cell = (uint64_t(i) * nt + r) * np + p;
+                } else {
+                    const uint64_t a = std::min(i, r), b = std::max(i, r);
+                    cell = (a * nt - a * (a - 1) / 2 + (b - a)) * np + p;  // triu pairs before (a, b)
+                }
+                return t->values().data() + cell * 3;
+            };
+            Rng rng(5);
+            std::vector<std::pair<double, double>> cases = {{1.0, 1.0}, {1.0, -1.0}, {0.0, 0.3}, {1e-12, -1.0},
+                                                            {1.5, 2.0}, {-0.2, -3.0}, {std::nan(""), 0.5},
+                                                            {0.5, std::nan("")}, {0.999999, 0.999999}};
+            for (int k = 0; k < 20000; ++k) cases.push_back({rng(), 2 * rng() - 1});
+            const BrdfTable::AxisPos tr = t->locate_theta_r_cos(0.8, Interp::Linear);
+            for (auto [ci, cp] : cases) {
+                BrdfTable::IsoRead rd;
+                t->prepare_iso_cos(ci, tr, cp, Interp::Linear, &rd);
+                const auto [i0, ti] = axis(std::clamp(ci, 0.0, 1.0), nt, step);
+                const auto [p0, tp] = axis(cp, np, step);
+                ASSERT_EQ(rd.t_i, ti) << ci;
+                ASSERT_EQ(rd.t_phi, tp) << cp;
+                ASSERT_EQ(rd.t_r, tr.t);
+                ASSERT_EQ(rd.dphi, 3u);
+                ASSERT_EQ(rd.row[0], row(i0, tr.i0, p0)) << ci << " " << cp;
+                ASSERT_EQ(rd.row[1], row(i0 + 1, tr.i0, p0));
+                ASSERT_EQ(rd.row[2], row(i0, tr.i1, p0));
+                ASSERT_EQ(rd.row[3], row(i0 + 1, tr.i1, p0));
+                // The read: the eight corners' weighted sum, per channel (a coloured table, so
+                // a channel mix-up shows).
+                const Rgb got = BrdfTable::read_iso(rd);
+                for (int c = 0; c < 3; ++c) {
+                    double want = 0;
+                    for (int corner = 0; corner < 8; ++corner) {
+                        const int bi = corner & 1, br = (corner >> 1) & 1, bp = (corner >> 2) & 1;
+                        const double w = (bi ? ti : 1 - ti) * (br ? tr.t : 1 - tr.t) * (bp ? tp : 1 - tp);
+                        want += w * row(i0 + bi, br ? tr.i1 : tr.i0, p0 + bp)[c];
+                    }
+                    ASSERT_NEAR(got[c], want, 1e-12 * (1 + std::fabs(want))) << c << " " << ci << " " << cp;
+                }
+            }
+        }
 }
 
 TEST(TableLookup, CosineLookupEqualsTheAngleLookup) {

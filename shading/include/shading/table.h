@@ -50,6 +50,10 @@
 
 #include "shading/brdf.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace shading {
 
 class TableSampler;  // table_sampler.h
@@ -212,7 +216,22 @@ public:
             for (int k = 0; k < 4; ++k) r[k] = lerp(double(rd.row[k][c]), double(rd.row[k][rd.dphi + c]), rd.t_phi);
             return lerp(lerp(r[0], r[1], rd.t_i), lerp(r[2], r[3], rd.t_i), rd.t_r);
         };
-        return C == 1 ? Rgb(channel(0)) : Rgb(channel(0), channel(1), channel(2));
+        if (C == 1) return Rgb(channel(0));
+#if defined(__SSE2__)
+        // Channels 0 and 1 as a pair of doubles: the same operations in the same order, so
+        // the same bits. Two floats -> two doubles by movsd + cvtps2pd.
+        auto pair = [](const float* p) {
+            return _mm_cvtps_pd(_mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(p))));
+        };
+        auto lerp2 = [](__m128d a, __m128d b, __m128d t) { return _mm_add_pd(a, _mm_mul_pd(t, _mm_sub_pd(b, a))); };
+        const __m128d tp = _mm_set1_pd(rd.t_phi), ti = _mm_set1_pd(rd.t_i), tr = _mm_set1_pd(rd.t_r);
+        __m128d r[4];
+        for (int k = 0; k < 4; ++k) r[k] = lerp2(pair(rd.row[k]), pair(rd.row[k] + rd.dphi), tp);
+        const __m128d rg = lerp2(lerp2(r[0], r[1], ti), lerp2(r[2], r[3], ti), tr);
+        return Rgb(_mm_cvtsd_f64(rg), _mm_cvtsd_f64(_mm_unpackhi_pd(rg, rg)), channel(2));
+#else
+        return Rgb(channel(0), channel(1), channel(2));
+#endif
     }
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
@@ -225,7 +244,9 @@ public:
 
     // Directional albedo a(theta_i) = integral over the hemisphere of f cos(theta_r) dw_r,
     // computed at construction on a ~1 deg midpoint grid of the (interpolated) table with
-    // exact cos*sin weights per theta_r band (so a constant table integrates exactly).
+    // exact cos*sin weights per theta_r band (so a constant table integrates exactly), summed
+    // as per-node weights times the stored values (the same integral, a node's work instead of
+    // a cell's: a 1 deg RGB table's albedo takes ~20 ms instead of ~0.3 s).
     // One entry per theta_i node; anisotropic tables: mean over the phi_i nodes. Half/
     // difference tables have no theta_i axis: entries every 2 deg (albedo_node_deg), each
     // integrated over the half vector (dw_o = 4 cos(theta_d) dw_h) on the table's own
@@ -265,6 +286,7 @@ private:
     std::vector<Rgb> albedo_;
     uint64_t stride_[4] = {0, 0, 0, 0};  // unfolded strides in floats
     double inv_step_[4] = {0, 0, 0, 0};  // nodes per degree
+    double last_node_[4] = {0, 0, 0, 0};  // n - 1 per axis, as a double
     // Half/difference layout: mean over phi_d of each theta_h = first-node row (per theta_d
     // node) and of each theta_d = first-node row (per theta_h node), channel fastest: the
     // virtual pole nodes; pole_hd_ both at once (the (0, 0) row's mean).

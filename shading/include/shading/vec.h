@@ -13,6 +13,10 @@
 #include <algorithm>
 #include <cmath>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace shading {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -85,6 +89,46 @@ inline double acos_approx(double x) {
     const double p = (e0 + e1 * a2) + (e2 + e3 * a2) * a4 + e4 * a8;
     const double r = std::sqrt(1.0 - a) * (kPi / 2 + a * p);
     return x < 0 ? kPi - r : r;
+}
+
+// acos_approx of two numbers at once, the same operations in the same order on the two lanes
+// of an SSE2 register (so the same bits as two calls: tested): the renderer's per-light
+// lookup needs theta_i and phi together.
+inline void acos_approx2(double x, double y, double* ax, double* ay) {
+#if defined(__SSE2__)
+    // Every constant as a ready pair (one aligned load each, no broadcasts).
+    alignas(16) static constexpr double k[][2] = {
+        {1.0, 1.0}, {-0.0, -0.0}, {kPi / 2, kPi / 2}, {kPi, kPi},
+        {-0.21460182476875928, -0.21460182476875928},     {0.089048041718750054, 0.089048041718750054},
+        {-0.050782478358709512, -0.050782478358709512},   {0.033587281220832758, 0.033587281220832758},
+        {-0.023867732483934753, -0.023867732483934753},   {0.0169165554678881, 0.0169165554678881},
+        {-0.010760133708773498, -0.010760133708773498},   {0.0053551255856450052, 0.0053551255856450052},
+        {-0.0017482332077248114, -0.0017482332077248114}, {0.0002706349525760654, 0.0002706349525760654}};
+    // Hidden from the optimiser, which would otherwise rebuild each pair from one double.
+    const double(*kp)[2] = k;
+#if defined(__GNUC__)
+    __asm__("" : "+r"(kp));
+#endif
+    auto K = [&](int i) { return _mm_load_pd(kp[i]); };
+    const __m128d v = _mm_set_pd(y, x);
+    const __m128d one = K(0);
+    const __m128d m = _mm_andnot_pd(K(1), v);  // |v|
+    // |v| < 1: |v|; |v| >= 1: 1; NaN (neither): 0
+    const __m128d a = _mm_or_pd(_mm_and_pd(_mm_cmplt_pd(m, one), m), _mm_and_pd(_mm_cmpge_pd(m, one), one));
+    const __m128d a2 = _mm_mul_pd(a, a), a4 = _mm_mul_pd(a2, a2), a8 = _mm_mul_pd(a4, a4);
+    auto lin = [&](int i) { return _mm_add_pd(K(i), _mm_mul_pd(K(i + 1), a)); };
+    const __m128d e0 = lin(4), e1 = lin(6), e2 = lin(8), e3 = lin(10), e4 = lin(12);
+    const __m128d p = _mm_add_pd(_mm_add_pd(_mm_add_pd(e0, _mm_mul_pd(e1, a2)), _mm_mul_pd(_mm_add_pd(e2, _mm_mul_pd(e3, a2)), a4)),
+                                 _mm_mul_pd(e4, a8));
+    const __m128d r = _mm_mul_pd(_mm_sqrt_pd(_mm_sub_pd(one, a)), _mm_add_pd(K(2), _mm_mul_pd(a, p)));
+    const __m128d neg = _mm_cmplt_pd(v, _mm_setzero_pd());
+    const __m128d out = _mm_or_pd(_mm_and_pd(neg, _mm_sub_pd(K(3), r)), _mm_andnot_pd(neg, r));
+    _mm_storel_pd(ax, out);
+    _mm_storeh_pd(ay, out);
+#else
+    *ax = acos_approx(x);
+    *ay = acos_approx(y);
+#endif
 }
 
 // Local-frame trigonometry (normal = +z, tangent = +x).
