@@ -318,13 +318,14 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
            extra_args: Sequence[str] = (), threads: int = 1,
            files: Optional[Mapping[str, Union[str, os.PathLike]]] = None,
            workdir: Optional[Union[str, os.PathLike]] = None,
-           timeout: Optional[float] = 600.0) -> RenderResult:
+           timeout: Optional[float] = 600.0, wrapper: Sequence[str] = ()) -> RenderResult:
     """Render ``scene`` (a :mod:`harness.core.scenes` dataclass, or ``.pov`` text) with ``binary``.
 
     ``width``/``height`` default to the scene's (required for text). ``files`` maps names in
     the job directory to files staged there (hard links or copies: tables, include files).
     ``workdir`` renders in that directory and keeps it; otherwise a temporary one is removed
-    afterwards.
+    afterwards. ``wrapper`` runs POV under another program (e.g. valgrind: its report is in
+    the result's ``stderr``).
     Raises :class:`RenderError` (with POV's message, file and line) when POV fails or writes
     no image, and :class:`harness.core.paths.BinaryNotFound` when the binary is missing.
     """
@@ -337,7 +338,7 @@ def render(scene: Any, binary: Union[str, os.PathLike, Binary] = "stock", *,
         text = scene_to_pov(scene)
         width = scene.width if width is None else width
         height = scene.height if height is None else height
-    cmd = build_command(b, width, height, float_exr, threads, extra_args)
+    cmd = list(wrapper) + build_command(b, width, height, float_exr, threads, extra_args)
 
     tmp = None
     if workdir is None:

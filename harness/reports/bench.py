@@ -15,9 +15,19 @@ over a plane, one parallel and one point light, orthographic camera, 1536 x 1536
 against stock POV-Ray's ``diffuse 0.6 phong 0.5 phong_size 40``; the ``grid 2 threads`` rows
 render the same scenes with ``+WT2``.
 
+Wall time on a shared or virtual machine drifts by more than the few per cent those goals
+are about, so the one-thread ``grid`` rows also print an ``instr ratio``: the instructions
+the trace executes, counted by valgrind (callgrind) where it is installed. A count is the
+difference between renders at 1/4 and 1/8 of the row's size, so start-up, parsing and
+table loading cancel and a stripped binary (Debian's) is counted like ours; it does not
+vary from run to run. It does not see memory stalls or instruction latencies (a sqrt costs
+one instruction), so the wall ratio stays the goal's measure and the count its steady
+companion. ``--instructions all`` counts every selected row, ``none`` none.
+
     python -m harness.reports.bench                 # every row
     python -m harness.reports.bench -k unmodified   # rows whose name contains the text
     python -m harness.reports.bench --list
+    python -m harness.reports.bench -k grid: --repeat 9 --instructions all
 
 Later issues add rows with :func:`row`.
 """
@@ -25,6 +35,8 @@ Later issues add rows with :func:`row`.
 from __future__ import annotations
 
 import argparse
+import re
+import shutil
 import statistics
 import sys
 from dataclasses import dataclass, field
@@ -75,6 +87,8 @@ class Row:
     threads: int = 1
     #: rows with the same group share the baseline and are measured in interleaved rounds
     group: str = ""
+    #: count the trace's instructions too (``--instructions auto``; needs valgrind)
+    count_instructions: bool = False
 
 
 ROWS: list[Row] = []
@@ -148,7 +162,9 @@ GRID_MODEL = "microfacet d=beckmann m=0.2 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.
 GRID_SIZE = 1536
 
 
-def _grid(finish: str, binary: str = "fork", lookup: str = "") -> Side:
+def grid_side(finish: str, binary: str = "fork", lookup: str = "") -> Side:
+    """One side of the grid rows: `finish` is "phong" (stock finish), "table" (the 1 deg table,
+    `lookup` appended to its block) or "model" (GRID_MODEL)."""
     if finish == "table":
         return Side(binary, GRID_SCENE.format(finish=f'brdf_table {{ "t.brdf"{lookup} }}'),
                     files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)})
@@ -158,15 +174,15 @@ def _grid(finish: str, binary: str = "fork", lookup: str = "") -> Side:
 
 
 for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
-    _kw = dict(width=GRID_SIZE, height=GRID_SIZE, threads=_threads, group=_group)
-    row(f"{_group}: fork phong / stock phong", _grid("phong", "stock"), _grid("phong"),
+    _kw = dict(width=GRID_SIZE, height=GRID_SIZE, threads=_threads, group=_group, count_instructions=_threads == 1)
+    row(f"{_group}: fork phong / stock phong", grid_side("phong", "stock"), grid_side("phong"),
         note="goal <= 1.00 (+- noise)", **_kw)
-    row(f"{_group}: brdf_table 1 deg trilinear / stock phong", _grid("phong", "stock"), _grid("table"),
+    row(f"{_group}: brdf_table 1 deg trilinear / stock phong", grid_side("phong", "stock"), grid_side("table"),
         note="goal <= 1.05", **_kw)
     if _threads == 1:
-        row(f"{_group}: brdf_table 1 deg nearest / stock phong", _grid("phong", "stock"),
-            _grid("table", lookup=" interpolate 0"), **_kw)
-    row(f"{_group}: brdf_model Beckmann conductor / stock phong", _grid("phong", "stock"), _grid("model"),
+        row(f"{_group}: brdf_table 1 deg nearest / stock phong", grid_side("phong", "stock"),
+            grid_side("table", lookup=" interpolate 0"), **_kw)
+    row(f"{_group}: brdf_model Beckmann conductor / stock phong", grid_side("phong", "stock"), grid_side("model"),
         note="goal <= 1.25", **_kw)
 
 
@@ -179,6 +195,15 @@ class Result:
     #: other work inflates them far less than the wall-clock trace time
     baseline_cpu: list[float] = field(default_factory=list)
     candidate_cpu: list[float] = field(default_factory=list)
+    #: instructions of the trace (trace_instructions), when counted
+    baseline_instructions: Optional[int] = None
+    candidate_instructions: Optional[int] = None
+
+    @property
+    def instruction_ratio(self) -> Optional[float]:
+        if not self.baseline_instructions or self.candidate_instructions is None:
+            return None
+        return self.candidate_instructions / self.baseline_instructions
 
     @property
     def ratios(self) -> list[float]:
@@ -217,6 +242,57 @@ def _trace_time(side: Side, r: Row, into: Optional[_Times] = None) -> float:
         into.append(wall)
         into.cpu.append(cpu)
     return wall
+
+
+#: Fractions of a row's image size whose renders' instruction counts are subtracted.
+INSTRUCTION_SCALES = (1 / 8, 1 / 4)
+_IREFS = re.compile(r"^==\d+== I\s+refs:\s+([\d,]+)\s*$", re.M)
+
+
+def parse_instructions(report: str) -> int:
+    """The total from valgrind's summary (``==PID== I   refs:   1,234,567``)."""
+    m = _IREFS.findall(report)
+    if len(m) != 1:
+        raise ValueError(f"expected one valgrind 'I refs' line, found {len(m)}")
+    return int(m[0].replace(",", ""))
+
+
+def instruction_difference(small: int, large: int) -> int:
+    """Instructions of the extra pixels: ``large - small`` (counts of the two renders)."""
+    if large <= small:
+        raise ValueError(f"the larger render counted {large} instructions, the smaller {small}")
+    return large - small
+
+
+def have_valgrind() -> bool:
+    return shutil.which("valgrind") is not None
+
+
+def trace_instructions(side: Side, r: Row) -> int:
+    """Instructions the trace of ``side`` executes over 3/64 of the row's pixels: callgrind's
+    count of a render at 1/4 of the row's size minus one at 1/8 (INSTRUCTION_SCALES)."""
+    counts = []
+    for f in INSTRUCTION_SCALES:
+        w, h = max(8, round(r.width * f)), max(8, round(r.height * f))
+        res = runner.render(side.scene, side.binary, width=w, height=h, threads=r.threads,
+                            files=side.resolved_files(), timeout=3600.0,
+                            wrapper=("valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null"))
+        counts.append(parse_instructions(res.stderr))
+    return instruction_difference(*counts)
+
+
+def count_instructions(results: Sequence[Result], log: Optional[Callable[[str], None]] = None) -> None:
+    """Fill in the instruction counts of ``results`` (each distinct side counted once)."""
+    seen: dict[tuple, int] = {}
+    for x in results:
+        r = x.row
+        for side, attr in ((r.baseline, "baseline_instructions"), (r.candidate, "candidate_instructions")):
+            key = (side.binary, side.scene, tuple(sorted(side.files)), r.width, r.height, r.threads)
+            if key not in seen:
+                seen[key] = trace_instructions(side, r)
+                if log:
+                    log(f"  {r.name}: {side.binary} {seen[key]:,} instructions")
+            setattr(x, attr, seen[key])
 
 
 def measure(r: Row, repeat: int = 5, log: Optional[Callable[[str], None]] = None) -> Result:
@@ -272,16 +348,19 @@ def measure_all(rows: Sequence[Row], repeat: int = 5,
 
 def format_table(results: Sequence[Result]) -> str:
     """Medians of the per-round ratios of trace wall time (``ratio``, with its spread) and of
-    trace CPU-seconds (``cpu ratio``)."""
+    trace CPU-seconds (``cpu ratio``); the ratio of trace instructions (``instr ratio``) where
+    they were counted."""
     w = max([len(x.row.name) for x in results] + [4])
     lines = [f"{'row':<{w}}  {'baseline s':>10}  {'candidate s':>11}  {'ratio':>6}  {'spread':>13}  "
-             f"{'cpu ratio':>9}  note", "-" * (w + 71)]
+             f"{'cpu ratio':>9}  {'instr ratio':>11}  note", "-" * (w + 84)]
     for x in results:
         rs = x.ratios
         cpu = f"{x.cpu_ratio:9.3f}" if x.cpu_ratio is not None else f"{'-':>9}"
+        ir = x.instruction_ratio
+        instr = f"{ir:11.4f}" if ir is not None else f"{'-':>11}"
         lines.append(f"{x.row.name:<{w}}  {statistics.median(x.baseline_s):10.3f}  "
                      f"{statistics.median(x.candidate_s):11.3f}  {x.ratio:6.3f}  "
-                     f"{min(rs):6.3f}..{max(rs):6.3f}  {cpu}  {x.row.note}")
+                     f"{min(rs):6.3f}..{max(rs):6.3f}  {cpu}  {instr}  {x.row.note}")
     return "\n".join(lines)
 
 
@@ -291,6 +370,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--repeat", type=int, default=5, help="baseline/candidate pairs per row (default 5)")
     ap.add_argument("--list", action="store_true", help="list the rows and exit")
     ap.add_argument("-q", "--quiet", action="store_true", help="no per-render progress")
+    ap.add_argument("--instructions", choices=("auto", "all", "none"), default="auto",
+                    help="count trace instructions with valgrind: for the rows that ask (auto, the "
+                         "one-thread grid rows), every selected row, or none")
     args = ap.parse_args(argv)
     rows = [r for r in ROWS if args.pattern in r.name]
     if args.list:
@@ -301,6 +383,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 2
     log = None if args.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     results = measure_all(rows, max(1, args.repeat), log)
+    counted = [x for x in results if args.instructions == "all" or (args.instructions == "auto" and x.row.count_instructions)]
+    if counted and not have_valgrind():
+        print("valgrind is not installed: no instruction counts", file=sys.stderr)
+    elif counted:
+        count_instructions(counted, log)
     print(format_table(results))
     return 0
 

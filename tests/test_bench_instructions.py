@@ -1,0 +1,46 @@
+"""The bench's instruction counts (harness.reports.bench, ``instr ratio``): valgrind's
+report parsed, the two-size difference, and one real count on a small scene."""
+
+import pytest
+
+from harness.reports import bench
+
+REPORT = """==4242== Callgrind, a call-graph generating cache profiler
+==4242== Command: povray +Iscene.pov
+==4242==
+==4242== Events    : Ir
+==4242== Collected : 1972344635
+==4242==
+==4242== I   refs:      1,972,344,635
+"""
+
+
+def test_parse_takes_the_summary_line():
+    assert bench.parse_instructions(REPORT) == 1972344635
+    # POV's own output around it does not matter
+    assert bench.parse_instructions("Trace Time: 1.2 s\n" + REPORT + "POV-Ray finished\n") == 1972344635
+
+
+@pytest.mark.parametrize("text", ["", "I refs: 12\n", REPORT + REPORT])
+def test_parse_refuses_anything_but_one_summary(text):
+    with pytest.raises(ValueError):
+        bench.parse_instructions(text)
+
+
+def test_difference_is_the_larger_minus_the_smaller():
+    assert bench.instruction_difference(314_242_553, 1_121_995_460) == 807_752_907
+    with pytest.raises(ValueError):
+        bench.instruction_difference(10, 10)  # the larger render must cost more
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not bench.have_valgrind(), reason="valgrind is not installed")
+def test_a_scene_counts_the_same_in_both_binaries_and_a_table_costs_more():
+    # The stock binary and the fork trace the stock phong grid with the same instructions
+    # (within 1 %: the fork's per-hit tests for its finishes); a table finish costs more.
+    row = bench.Row("t", bench.grid_side("phong", "stock"), bench.grid_side("phong"), width=160, height=160)
+    stock = bench.trace_instructions(row.baseline, row)
+    fork = bench.trace_instructions(row.candidate, row)
+    table = bench.trace_instructions(bench.grid_side("table"), row)
+    assert abs(fork / stock - 1) < 0.01
+    assert table > fork
