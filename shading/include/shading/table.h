@@ -219,9 +219,10 @@ public:
         if (C == 1) return Rgb(channel(0));
 #if defined(__SSE2__)
         // Channels 0 and 1 as a pair of doubles: the same operations in the same order, so
-        // the same bits. Two floats -> two doubles by movsd + cvtps2pd.
+        // the same bits. Two floats -> two doubles by movq + cvtps2pd (_mm_loadl_epi64 reads
+        // through an unaligned, may-alias type: the floats are only 4-byte aligned).
         auto pair = [](const float* p) {
-            return _mm_cvtps_pd(_mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(p))));
+            return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))));
         };
         auto lerp2 = [](__m128d a, __m128d b, __m128d t) { return _mm_add_pd(a, _mm_mul_pd(t, _mm_sub_pd(b, a))); };
         const __m128d tp = _mm_set1_pd(rd.t_phi), ti = _mm_set1_pd(rd.t_i), tr = _mm_set1_pd(rd.t_r);
