@@ -19,10 +19,12 @@ Wall time on a shared or virtual machine drifts by more than the few per cent th
 are about, so the one-thread ``grid`` rows also print an ``instr ratio``: the instructions
 the trace executes, counted by valgrind (callgrind) where it is installed. A count is the
 difference between renders at 1/4 and 1/8 of the row's size, so start-up, parsing and
-table loading cancel and a stripped binary (Debian's) is counted like ours; it does not
-vary from run to run. It does not see memory stalls or instruction latencies (a sqrt costs
-one instruction), so the wall ratio stays the goal's measure and the count its steady
-companion. ``--instructions all`` counts every selected row, ``none`` none.
+table loading cancel and a stripped binary (Debian's) is counted like ours; it hardly
+varies between runs (0.003 % for the stock grid). It does not see memory stalls, cache
+misses or instruction latencies (a sqrt costs one instruction; builds with fewer
+instructions have traced slower, shading/MODELS.md), so the wall ratio stays the goal's
+measure and the count its steady companion. ``--instructions all`` counts every selected
+row, ``none`` none.
 
     python -m harness.reports.bench                 # every row
     python -m harness.reports.bench -k unmodified   # rows whose name contains the text
