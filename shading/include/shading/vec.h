@@ -76,16 +76,21 @@ inline double sqr(double x) { return x * x; }
 // acos for this project; |error| < 8e-11 rad on [0, 1] (measured on 2e6 points; 5e-9 deg,
 // 5e-9 of a 1 deg table cell), decreasing, exact at 0 and 1. acos(-x) = pi - acos(x), so the
 // two halves meet exactly at pi/2. x is clamped to [-1, 1]; NaN gives pi/2.
+namespace detail {
+// q0 ... q9 of acos_approx's P; acos_approx2 reads the same numbers as pairs.
+inline constexpr double kAcosQ[10] = {-0.21460182476875928,   0.089048041718750054,  -0.050782478358709512,
+                                      0.033587281220832758,   -0.023867732483934753, 0.0169165554678881,
+                                      -0.010760133708773498,  0.0053551255856450052, -0.0017482332077248114,
+                                      0.0002706349525760654};
+}  // namespace detail
 inline double acos_approx(double x) {
     const double a = std::fabs(x) < 1.0 ? std::fabs(x) : (std::fabs(x) >= 1.0 ? 1.0 : 0.0);
     // P(a) = q0 + q1 a + ... + q9 a^9 by Estrin's scheme (pairs, then a^2, a^4, a^8): a
     // dependency chain of 5 multiply-adds instead of Horner's 10, on the per-light path.
     const double a2 = a * a, a4 = a2 * a2, a8 = a4 * a4;
-    const double e0 = -0.21460182476875928 + 0.089048041718750054 * a;
-    const double e1 = -0.050782478358709512 + 0.033587281220832758 * a;
-    const double e2 = -0.023867732483934753 + 0.0169165554678881 * a;
-    const double e3 = -0.010760133708773498 + 0.0053551255856450052 * a;
-    const double e4 = -0.0017482332077248114 + 0.0002706349525760654 * a;
+    const double* q = detail::kAcosQ;
+    const double e0 = q[0] + q[1] * a, e1 = q[2] + q[3] * a, e2 = q[4] + q[5] * a, e3 = q[6] + q[7] * a,
+                 e4 = q[8] + q[9] * a;
     const double p = (e0 + e1 * a2) + (e2 + e3 * a2) * a4 + e4 * a8;
     const double r = std::sqrt(1.0 - a) * (kPi / 2 + a * p);
     return x < 0 ? kPi - r : r;
@@ -96,14 +101,12 @@ inline double acos_approx(double x) {
 // lookup needs theta_i and phi together.
 inline void acos_approx2(double x, double y, double* ax, double* ay) {
 #if defined(__SSE2__)
-    // Every constant as a ready pair (one aligned load each, no broadcasts).
+    // Every constant as a ready pair (one aligned load each, no broadcasts); q0 ... q9 from
+    // acos_approx's table.
+    constexpr const double* q = detail::kAcosQ;
     alignas(16) static constexpr double k[][2] = {
-        {1.0, 1.0}, {-0.0, -0.0}, {kPi / 2, kPi / 2}, {kPi, kPi},
-        {-0.21460182476875928, -0.21460182476875928},     {0.089048041718750054, 0.089048041718750054},
-        {-0.050782478358709512, -0.050782478358709512},   {0.033587281220832758, 0.033587281220832758},
-        {-0.023867732483934753, -0.023867732483934753},   {0.0169165554678881, 0.0169165554678881},
-        {-0.010760133708773498, -0.010760133708773498},   {0.0053551255856450052, 0.0053551255856450052},
-        {-0.0017482332077248114, -0.0017482332077248114}, {0.0002706349525760654, 0.0002706349525760654}};
+        {1.0, 1.0},   {-0.0, -0.0}, {kPi / 2, kPi / 2}, {kPi, kPi},   {q[0], q[0]}, {q[1], q[1]}, {q[2], q[2]},
+        {q[3], q[3]}, {q[4], q[4]}, {q[5], q[5]},       {q[6], q[6]}, {q[7], q[7]}, {q[8], q[8]}, {q[9], q[9]}};
     // Hidden from the optimiser, which would otherwise rebuild each pair from one double.
     const double(*kp)[2] = k;
 #if defined(__GNUC__)
