@@ -195,8 +195,16 @@ bool same(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z
 void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
     const FinishModel& model = *v->model;
     v->pending.valid = false;
-    if (!model.iso_table) return;
     FinishView::Pending& p = v->pending;
+    if (model.halfdiff_table) {
+        p.cos_i = dot(v->n, to_light);
+        if (!(p.cos_i > 0) || !(v->cos_o > 0)) return;
+        model.halfdiff_table->prepare_halfdiff_dirs(v->n, to_light, v->to_eye, model.iso_interp, &p.hd);
+        p.to_light = to_light;
+        p.valid = true;
+        return;
+    }
+    if (!model.iso_table) return;
     double cos_phi;
     if (!table_cosines(*v, to_light, &p.cos_i, &cos_phi)) return;
     model.iso_table->prepare_iso_cos(p.cos_i, v->theta_r, cos_phi, model.iso_interp, &p.read);
@@ -207,10 +215,17 @@ void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
 Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
     const FinishModel& model = *v.model;
     if (model.halfdiff_table) {
-        const double ci = dot(v.n, to_light);
-        if (!(ci > 0) || !(v.cos_o > 0)) return Rgb(0.0);
-        Rgb w = model.halfdiff_table->eval_halfdiff_dirs(v.n, to_light, v.to_eye, model.iso_interp) * (kPi * ci) *
-                model.scale;
+        Rgb f;
+        double ci;
+        if (v.pending.valid && same(v.pending.to_light, to_light)) {
+            ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
+            f = BrdfTable::read_halfdiff(v.pending.hd);
+        } else {
+            ci = dot(v.n, to_light);
+            if (!(ci > 0) || !(v.cos_o > 0)) return Rgb(0.0);
+            f = model.halfdiff_table->eval_halfdiff_dirs(v.n, to_light, v.to_eye, model.iso_interp);
+        }
+        Rgb w = f * (kPi * ci) * model.scale;
         return model.tint ? w * pigment : w;
     }
     if (model.iso_table) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <type_traits>
 
 #include "shading/table.h"
 
@@ -60,8 +61,9 @@ BrdfTable::HdPos BrdfTable::locate_hd(int axis, double x, Interp interp) const {
     return {i0, i0 + 1, y - double(i0)};
 }
 
-Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
+void BrdfTable::rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const {
     const int C = geom_.channels;
+    rd->channels = C;
     // The (theta_h, theta_d) row of a corner: a pointer to its phi_d = 0 value, and the stride
     // along phi_d (0 for a virtual pole row: its value does not depend on phi_d).
     auto row = [&](int32_t i, int32_t j, uint64_t& stride) -> const float* {
@@ -73,33 +75,67 @@ Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
     };
     uint64_t s;
     if (interp == Interp::Nearest) {
-        const float* p = row(pos[0].i0, pos[1].i0, s) + uint64_t(pos[2].i0) * s;
-        return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
+        rd->nearest = true;
+        rd->a[0] = row(pos[0].i0, pos[1].i0, s) + uint64_t(pos[2].i0) * s;
+        return;
     }
     // Bilinear in (theta_h, theta_d) over four rows, each linear in phi_d.
-    const double th = pos[0].t, td = pos[1].t, tp = pos[2].t;
+    rd->nearest = false;
+    const double th = pos[0].t, td = pos[1].t;
     const int32_t ii[4] = {pos[0].i0, pos[0].i0, pos[0].i1, pos[0].i1}, jj[4] = {pos[1].i0, pos[1].i1, pos[1].i0, pos[1].i1};
-    const double w[4] = {(1.0 - th) * (1.0 - td), (1.0 - th) * td, th * (1.0 - td), th * td};
+    rd->w[0] = (1.0 - th) * (1.0 - td);
+    rd->w[1] = (1.0 - th) * td;
+    rd->w[2] = th * (1.0 - td);
+    rd->w[3] = th * td;
+    rd->t_phi = pos[2].t;
     const uint64_t k0 = uint64_t(pos[2].i0), k1 = uint64_t(pos[2].i1);
-    double acc[3] = {0, 0, 0};
     for (int q = 0; q < 4; ++q) {
-        if (w[q] == 0.0) continue;  // exact at nodes, and no read of a weightless row
         const float* p = row(ii[q], jj[q], s);
-        const float *a = p + k0 * s, *b = p + k1 * s;
-        for (int c = 0; c < C; ++c) acc[c] += w[q] * ((1.0 - tp) * double(a[c]) + tp * double(b[c]));
+        rd->a[q] = p + k0 * s;
+        rd->b[q] = p + k1 * s;
     }
-    return C == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
+}
+
+Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
+    const int C = rd.channels;
+    if (rd.nearest) {
+        const float* p = rd.a[0];
+        return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
+    }
+    // The channel count as a constant (cc), so the per-light path has no channel loop.
+    const double tp = rd.t_phi;
+    auto bilinear = [&](auto cc) {
+        constexpr int CC = decltype(cc)::value;
+        double acc[3] = {0, 0, 0};
+        for (int q = 0; q < 4; ++q) {
+            if (rd.w[q] == 0.0) continue;  // exact at nodes, and no read of a weightless row
+            const float *a = rd.a[q], *b = rd.b[q];
+            for (int c = 0; c < CC; ++c) acc[c] += rd.w[q] * ((1.0 - tp) * double(a[c]) + tp * double(b[c]));
+        }
+        return CC == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
+    };
+    return C == 1 ? bilinear(std::integral_constant<int, 1>()) : bilinear(std::integral_constant<int, 3>());
+}
+
+Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
+    HdRead rd;
+    rows_hd(pos, interp, &rd);
+    return read_halfdiff(rd);
 }
 
 // theta_h, theta_d in [0, pi/2] (clamped), phi_d in [0, pi] (pi is the same pair as 0).
 // The bin positions are computed exactly as MERL's reference reader computes its bins.
-Rgb BrdfTable::hd_lookup(double theta_h, double theta_d, double phi_d, Interp interp) const {
+void BrdfTable::locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp, HdPos pos[3]) const {
     theta_h = std::min(theta_h, kHalfPi);
     theta_d = std::min(theta_d, kHalfPi);
-    const HdPos pos[3] = {
-        locate_hd(0, theta_h > 0 ? std::sqrt(theta_h / kHalfPi) * double(geom_.n[0]) : 0.0, interp),
-        locate_hd(1, theta_d / kHalfPi * double(geom_.n[1]), interp),
-        locate_hd(2, phi_d / kPi * double(geom_.n[2]), interp)};
+    pos[0] = locate_hd(0, theta_h > 0 ? std::sqrt(theta_h / kHalfPi) * double(geom_.n[0]) : 0.0, interp);
+    pos[1] = locate_hd(1, theta_d / kHalfPi * double(geom_.n[1]), interp);
+    pos[2] = locate_hd(2, phi_d / kPi * double(geom_.n[2]), interp);
+}
+
+Rgb BrdfTable::hd_lookup(double theta_h, double theta_d, double phi_d, Interp interp) const {
+    HdPos pos[3];
+    locate_all_hd(theta_h, theta_d, phi_d, interp, pos);
     return gather_hd(pos, interp);
 }
 
@@ -112,23 +148,46 @@ Rgb BrdfTable::eval_halfdiff(double theta_h, double theta_d, double phi_d, Inter
 }
 
 Rgb BrdfTable::eval_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp) const {
-    require_halfdiff(geom_, "eval_halfdiff_dirs");
+    HdRead rd;
+    prepare_halfdiff_dirs(n, wi, wo, interp, &rd);
+    return read_halfdiff(rd);
+}
+
+void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp, HdRead* rd) const {
+    require_halfdiff(geom_, "prepare_halfdiff_dirs");
     // h = wi + wo, unnormalised. b = n x h is the half frame's y axis times |h| sin(theta_h),
     // so theta_h = atan2(|b|, n.h) keeps full precision at the peak (acos would not), and in
     // that frame d.y = wi.b / |b| and d.x = |h| (n.wo - n.wi) / (2 |b|) (expand
-    // wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio. |h| = 2 cos(theta_d);
-    // acos loses ~1e-8 rad next to theta_d = 0, inside the pole half-cell (the lookup is then
-    // the pole's value to ~1e-6 of a cell), and is cheaper than a second atan2. At h = 0
-    // (wi = -wo, both on the horizon) everything stays finite; at theta_h = 0 or theta_d = 0
-    // phi_d is undefined and the virtual poles make the value independent of it.
+    // wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio. |h| = 2 cos(theta_d)
+    // and |wi - wo| = 2 sin(theta_d): theta_d by atan2 too, precise at both ends. The three
+    // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16); phi_d's y is made
+    // >= 0 by turning the pair by pi (reciprocity: phi_d and phi_d + pi are the same pair). At
+    // h = 0 (wi = -wo, both on the horizon) everything stays finite; at theta_h = 0 or
+    // theta_d = 0 phi_d is undefined and the virtual poles make the value independent of it.
     const Vec3 h = wi + wo;
     const Vec3 b = cross(n, h);
     const double hl = length(h);
-    const double theta_h = std::atan2(length(b), dot(n, h));
-    const double theta_d = std::acos(std::min(1.0, 0.5 * hl));
-    double phi_d = std::atan2(dot(wi, b), 0.5 * hl * (dot(n, wo) - dot(n, wi)));
-    if (phi_d < 0) phi_d += kPi;  // reciprocity: phi_d and phi_d + pi are the same pair
-    return hd_lookup(theta_h, theta_d, phi_d, interp);
+    const double theta_h = atan2_upper(length(b), dot(n, h));
+    const double theta_d = atan2_upper(length(wi - wo), hl);
+    const double y = dot(wi, b), x = 0.5 * hl * (dot(n, wo) - dot(n, wi));
+    const double phi_d = y < 0 ? atan2_upper(-y, -x) : atan2_upper(y, x);
+    HdPos pos[3];
+    locate_all_hd(theta_h, theta_d, phi_d, interp, pos);
+    rows_hd(pos, interp, rd);
+#if defined(__GNUC__)
+    // Each row segment (two phi_d nodes x channels) may cross a cache line: the first float
+    // of its i0 node and the last of its i1 node (apart only across the phi_d wrap).
+    const int last = rd->channels - 1;
+    if (rd->nearest) {
+        __builtin_prefetch(rd->a[0]);
+        __builtin_prefetch(rd->a[0] + last);
+    } else {
+        for (int q = 0; q < 4; ++q) {
+            __builtin_prefetch(rd->a[q]);
+            __builtin_prefetch(rd->b[q] + last);
+        }
+    }
+#endif
 }
 
 void BrdfTable::init_halfdiff() {

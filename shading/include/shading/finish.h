@@ -117,7 +117,8 @@ struct FinishView {
         Vec3 to_light;
         bool valid = false;
         double cos_i = 0;
-        BrdfTable::IsoRead read;
+        BrdfTable::IsoRead read;  // isotropic tables
+        BrdfTable::HdRead hd;     // half/difference tables
     } pending;
     // Whether this view was made for `m` at (n, to_eye), bit for bit.
     bool is_for(const FinishModel& m, const Vec3& n_, const Vec3& to_eye_) const {

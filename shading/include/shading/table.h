@@ -170,9 +170,23 @@ public:
     // theta_h, theta_d clamped to [0, pi/2], phi_d any real (period pi).
     Rgb eval_halfdiff(double theta_h, double theta_d, double phi_d, Interp interp) const;
     // From unit vectors in any frame: n the normal, wi towards the light, wo towards the
-    // viewer, both above the surface (n.wi > 0, n.wo > 0; the caller tests). Three square
-    // roots, two atan2 and one acos, no frame: the renderer's per-light path (finish.cpp).
+    // viewer, both above the surface (n.wi > 0, n.wo > 0; the caller tests). Four square
+    // roots, three atan2_upper (vec.h), no frame: the renderer's per-light path (finish.cpp).
     Rgb eval_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp) const;
+    // The same in two steps, as prepare_iso_cos/read_iso: prepare_halfdiff_dirs locates the
+    // pair, finds the four (theta_h, theta_d) rows the read needs and prefetches them (their
+    // memory latency then overlaps the renderer's shadow test); read_halfdiff interpolates.
+    // Same bits as eval_halfdiff_dirs.
+    struct HdRead {
+        const float* a[4] = {nullptr, nullptr, nullptr, nullptr};  // rows (h0,d0) (h0,d1) (h1,d0) (h1,d1) at phi_d node i0
+        const float* b[4] = {nullptr, nullptr, nullptr, nullptr};  // the same rows at phi_d node i1
+        double w[4] = {0, 0, 0, 0};  // bilinear (theta_h, theta_d) weights; 0: the row is not read
+        double t_phi = 0;
+        int channels = 3;
+        bool nearest = false;  // a[0] alone
+    };
+    void prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp, HdRead* rd) const;
+    static Rgb read_halfdiff(const HdRead& rd);
     bool halfdiff() const { return geom_.layout == TableLayout::HalfDiff; }
     // The renderer's per-light lookup (isotropic tables; others fall back to eval_iso): from
     // cos(theta_i), cos(theta_r) and cos(phi), the angles through acos_approx (vec.h, within
@@ -275,7 +289,10 @@ private:
         double t;        // weight of i1
     };
     HdPos locate_hd(int axis, double x, Interp interp) const;  // x: fractional node index
+    void rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const;
     Rgb gather_hd(const HdPos pos[3], Interp interp) const;
+    // theta_h, theta_d in [0, pi/2] (clamped), phi_d in [0, pi]: the three axis positions
+    void locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp, HdPos pos[3]) const;
     Rgb hd_lookup(double theta_h, double theta_d, double phi_d, Interp interp) const;
     void init_halfdiff();
     void compute_albedo_halfdiff();
