@@ -166,10 +166,14 @@ GRID_SIZE = 1536
 
 def grid_side(finish: str, binary: str = "fork", lookup: str = "") -> Side:
     """One side of the grid rows: `finish` is "phong" (stock finish), "table" (the 1 deg table,
-    `lookup` appended to its block) or "model" (GRID_MODEL)."""
+    `lookup` appended to its block), "halfdiff" (the same material as a half/difference table,
+    the default 256 x 128 x 32 nodes) or "model" (GRID_MODEL)."""
     if finish == "table":
         return Side(binary, GRID_SCENE.format(finish=f'brdf_table {{ "t.brdf"{lookup} }}'),
                     files={"t.brdf": lambda: tables.tabulated(TABLE_SPEC, step=1.0, fold=True)})
+    if finish == "halfdiff":
+        return Side(binary, GRID_SCENE.format(finish='brdf_table { "t.brdf" }'),
+                    files={"t.brdf": lambda: tables.tabulated_halfdiff(TABLE_SPEC)})
     if finish == "model":
         return Side(binary, GRID_SCENE.format(finish=f'brdf_model {{ "{GRID_MODEL}" }}'))
     return Side(binary, GRID_SCENE.format(finish=GRID_PHONG))
@@ -184,6 +188,8 @@ for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
     if _threads == 1:
         row(f"{_group}: brdf_table 1 deg nearest / stock phong", grid_side("phong", "stock"),
             grid_side("table", lookup=" interpolate 0"), **_kw)
+        row(f"{_group}: brdf_table halfdiff trilinear / stock phong", grid_side("phong", "stock"),
+            grid_side("halfdiff"), note="goal <= 1.05 (the narrow-lobe layout's lookup)", **_kw)
     row(f"{_group}: brdf_model Beckmann conductor / stock phong", grid_side("phong", "stock"), grid_side("model"),
         note="goal <= 1.25", **_kw)
 
