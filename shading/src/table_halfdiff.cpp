@@ -5,6 +5,9 @@
 #include <cmath>
 #include <stdexcept>
 #include <type_traits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "shading/table.h"
 
@@ -36,7 +39,7 @@ bool TableGeometry::halfdiff_node_pair(const uint32_t idx[4], Vec3& wi, Vec3& wo
 
 // `x` is the position in bin units: node k (the centre of bin k) is at x = k + 1/2, so
 // floor(x) is MERL's reference bin (merl.h) and x - 1/2 the fractional node index.
-BrdfTable::HdPos BrdfTable::locate_hd(int axis, double x, Interp interp) const {
+inline BrdfTable::HdPos BrdfTable::locate_hd(int axis, double x, Interp interp) const {
     const int32_t n = int32_t(geom_.n[axis]);
     if (axis == 2) {  // phi_d: periodic, x already in [0, n] (or NaN)
         if (!(x >= 0) || x >= double(n)) x = 0;  // NaN, or pi folding onto 0 (same direction pair)
@@ -104,6 +107,26 @@ Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
     }
     // The channel count as a constant (cc), so the per-light path has no channel loop.
     const double tp = rd.t_phi;
+#if defined(__SSE2__)
+    if (C == 3) {
+        // Channels 0 and 1 as a pair of doubles: the same operations in the same order as
+        // the loop below, so the same bits (floats -> doubles as in read_iso).
+        auto pair = [](const float* p) {
+            return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))));
+        };
+        const __m128d tp2 = _mm_set1_pd(tp), up2 = _mm_set1_pd(1.0 - tp);
+        __m128d acc01 = _mm_setzero_pd();
+        double acc2 = 0;
+        for (int q = 0; q < 4; ++q) {
+            const double w = rd.w[q];
+            if (w == 0.0) continue;  // exact at nodes, and no read of a weightless row
+            const float *a = rd.a[q], *b = rd.b[q];
+            acc01 = _mm_add_pd(acc01, _mm_mul_pd(_mm_set1_pd(w), _mm_add_pd(_mm_mul_pd(up2, pair(a)), _mm_mul_pd(tp2, pair(b)))));
+            acc2 += w * ((1.0 - tp) * double(a[2]) + tp * double(b[2]));
+        }
+        return Rgb(_mm_cvtsd_f64(acc01), _mm_cvtsd_f64(_mm_unpackhi_pd(acc01, acc01)), acc2);
+    }
+#endif
     auto bilinear = [&](auto cc) {
         constexpr int CC = decltype(cc)::value;
         double acc[3] = {0, 0, 0};
