@@ -33,6 +33,32 @@ def test_difference_is_the_larger_minus_the_smaller():
         bench.instruction_difference(10, 10)  # the larger render must cost more
 
 
+def test_each_distinct_side_is_counted_once_and_staged_files_count_by_content(monkeypatch, tmp_path):
+    # The same scene text with a different table staged under the same name (the grid's 1 deg
+    # and half/difference rows both stage t.brdf) is a different side: counted, not reused.
+    a, b = tmp_path / "a.brdf", tmp_path / "b.brdf"
+    a.write_bytes(b"a")
+    b.write_bytes(b"b")
+    counts = {str(a): 100, str(b): 200}
+    calls = []
+
+    def fake(side, r):
+        calls.append(side)
+        files = side.resolved_files()
+        return counts[str(files["t.brdf"])] if files else 50
+
+    monkeypatch.setattr(bench, "trace_instructions", fake)
+    scene = 'brdf_table { "t.brdf" }'
+    stock = bench.Side("stock", "phong")
+    rows = [bench.Row("one", stock, bench.Side("fork", scene, files={"t.brdf": lambda: a})),
+            bench.Row("two", stock, bench.Side("fork", scene, files={"t.brdf": b}))]
+    results = [bench.Result(r, [1.0], [1.0]) for r in rows]
+    bench.count_instructions(results)
+    assert [x.candidate_instructions for x in results] == [100, 200]
+    assert [x.baseline_instructions for x in results] == [50, 50]
+    assert len(calls) == 3  # the shared baseline once
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not bench.have_valgrind(), reason="valgrind is not installed")
 def test_a_scene_counts_the_same_in_both_binaries_and_a_table_costs_more():

@@ -295,7 +295,9 @@ def count_instructions(results: Sequence[Result], log: Optional[Callable[[str], 
     for x in results:
         r = x.row
         for side, attr in ((r.baseline, "baseline_instructions"), (r.candidate, "candidate_instructions")):
-            key = (side.binary, side.scene, tuple(sorted(side.files)), r.width, r.height, r.threads)
+            # the staged files by what they are, not by name: two tables staged as t.brdf differ
+            files = tuple(sorted((k, str(v)) for k, v in side.resolved_files().items()))
+            key = (side.binary, side.scene, files, r.width, r.height, r.threads)
             if key not in seen:
                 seen[key] = trace_instructions(side, r)
                 if log:
