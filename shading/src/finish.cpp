@@ -214,26 +214,16 @@ void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
 
 Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
     const FinishModel& model = *v.model;
-    if (model.halfdiff_table) {
+    if (model.halfdiff_table || model.iso_table) {
         Rgb f;
         double ci;
         if (v.pending.valid && same(v.pending.to_light, to_light)) {
             ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
-            f = BrdfTable::read_halfdiff(v.pending.hd);
-        } else {
+            f = model.halfdiff_table ? BrdfTable::read_halfdiff(v.pending.hd) : BrdfTable::read_iso(v.pending.read);
+        } else if (model.halfdiff_table) {
             ci = dot(v.n, to_light);
             if (!(ci > 0) || !(v.cos_o > 0)) return Rgb(0.0);
             f = model.halfdiff_table->eval_halfdiff_dirs(v.n, to_light, v.to_eye, model.iso_interp);
-        }
-        Rgb w = f * (kPi * ci) * model.scale;
-        return model.tint ? w * pigment : w;
-    }
-    if (model.iso_table) {
-        Rgb f;
-        double ci;
-        if (v.pending.valid && same(v.pending.to_light, to_light)) {
-            ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
-            f = BrdfTable::read_iso(v.pending.read);
         } else {
             double cp;
             if (!table_cosines(v, to_light, &ci, &cp)) return Rgb(0.0);
