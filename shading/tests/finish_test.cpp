@@ -462,6 +462,54 @@ TEST(Finish, PrefetchedLightGivesTheSameBits) {
     }
 }
 
+TEST(Finish, PrefetchedTableReadIsTheFreshLookup) {
+    // The renderer locates a light's table rows before its shadow test
+    // (finish_light_prefetch) and reads them after (finish_light_weight): for both table
+    // layouts and both interpolations the weight is bit for bit the one without the
+    // prefetch, a prefetch made for another light is not used, and the half/difference
+    // weight is its direct lookup (eval_halfdiff_dirs) times pi cos(theta_i) and the scale.
+    BuildOptions fold;
+    fold.fold = true;
+    const auto spec = "microfacet d=beckmann m=0.1 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8 kd=0.2 rho_s=0.8";
+    std::shared_ptr<const BrdfTable> iso = build_table(tabulate(*make_brdf(spec), TableGeometry::isotropic(2.0)), fold);
+    std::shared_ptr<const BrdfTable> hd =
+        build_table(tabulate(*make_brdf(spec), TableGeometry::halfdiff(48, 32, 16)), BuildOptions());
+    ASSERT_TRUE(hd->halfdiff());
+    const Vec3 n = normalize(Vec3(-0.2, 0.1, 1.0)), eye = normalize(Vec3(0.3, 0.35, 1.0));
+    const Rgb pigment(0.9, 0.5, 0.25);
+    for (const auto& t : {iso, hd})
+        for (Interp interp : {Interp::Linear, Interp::Nearest}) {
+            auto m = make_finish_model(table_brdf(t, interp));
+            m->scale = Rgb(0.5, 1.0, 2.0);
+            int nonzero = 0;
+            for (int k = 0; k < 300; ++k) {
+                const Vec3 l = normalize(Vec3(std::sin(0.41 * k), std::cos(0.29 * k), 0.8 * std::sin(0.13 * k) + 0.1));
+                const Vec3 other = normalize(Vec3(l.y, -l.x, l.z + 0.5));
+                FinishView fresh, pre, stale;
+                finish_view(*m, n, eye, &fresh);
+                finish_view(*m, n, eye, &pre);
+                finish_view(*m, n, eye, &stale);
+                const Rgb want = finish_light_weight(fresh, l, pigment);
+                finish_light_prefetch(&pre, l);
+                finish_light_prefetch(&stale, other);
+                const Rgb got = finish_light_weight(pre, l, pigment), got_stale = finish_light_weight(stale, l, pigment);
+                const double ci = dot(n, l);
+                EXPECT_EQ(pre.pending.valid, ci > 0) << k;
+                for (int c = 0; c < 3; ++c) {
+                    ASSERT_EQ(got[c], want[c]) << k << " " << c;
+                    ASSERT_EQ(got_stale[c], want[c]) << k << " " << c;
+                }
+                if (!(ci > 0)) continue;
+                ++nonzero;
+                if (t == hd) {
+                    const Rgb direct = hd->eval_halfdiff_dirs(n, l, eye, interp) * (kPi * ci) * m->scale;
+                    for (int c = 0; c < 3; ++c) ASSERT_EQ(got[c], direct[c]) << k << " " << c;
+                }
+            }
+            EXPECT_GT(nonzero, 100);
+        }
+}
+
 TEST(Finish, ViewLookupOfATableIsTheTableTimesPiCosine) {
     // The renderer's per-light path for isotropic tables (inline in finish.h) against the
     // table's angle lookup (libm acos/atan2 in BrdfTable::f, another code path) times
