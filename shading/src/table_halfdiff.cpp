@@ -105,7 +105,6 @@ Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
         const float* p = rd.a[0];
         return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
     }
-    // The channel count as a constant (cc), so the per-light path has no channel loop.
     const double tp = rd.t_phi;
 #if defined(__SSE2__)
     if (C == 3) {
@@ -127,6 +126,7 @@ Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
         return Rgb(_mm_cvtsd_f64(acc01), _mm_cvtsd_f64(_mm_unpackhi_pd(acc01, acc01)), acc2);
     }
 #endif
+    // The channel count as a constant (cc): no channel loop.
     auto bilinear = [&](auto cc) {
         constexpr int CC = decltype(cc)::value;
         double acc[3] = {0, 0, 0};
