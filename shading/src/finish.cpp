@@ -178,13 +178,17 @@ void finish_view(const FinishModel& model, const Vec3& n, const Vec3& to_eye, Fi
 }
 
 namespace {
+// cos(theta_i) into *ci; false when the light or the viewer is below the surface.
+bool both_above(const FinishView& v, const Vec3& to_light, double* ci) {
+    *ci = dot(v.n, to_light);
+    return *ci > 0 && v.cos_o > 0;
+}
 // Isotropic table: cosines straight from world vectors, no frame. cos phi (phi = phi_r -
 // phi_i) is l.v minus the product of the normal components, over sin(theta_i) sin(theta_r);
 // at a pole (product 0) phi is undefined and the table's pole rows do not depend on it.
 // False when the light or the viewer is below the surface.
 bool table_cosines(const FinishView& v, const Vec3& to_light, double* ci, double* cp) {
-    *ci = dot(v.n, to_light);
-    if (!(*ci > 0) || !(v.cos_o > 0)) return false;
+    if (!both_above(v, to_light, ci)) return false;
     const double ss = (1.0 - *ci * *ci) * v.sin2_o;
     *cp = ss > 0 ? (dot(to_light, v.to_eye) - *ci * v.cos_o) / std::sqrt(ss) : 1.0;
     return true;
@@ -197,8 +201,7 @@ void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
     v->pending.valid = false;
     FinishView::Pending& p = v->pending;
     if (model.halfdiff_table) {
-        p.cos_i = dot(v->n, to_light);
-        if (!(p.cos_i > 0) || !(v->cos_o > 0)) return;
+        if (!both_above(*v, to_light, &p.cos_i)) return;
         model.halfdiff_table->prepare_halfdiff_dirs(v->n, to_light, v->to_eye, model.iso_interp, &p.hd);
         p.to_light = to_light;
         p.valid = true;
@@ -221,8 +224,7 @@ Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pi
             ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
             f = model.halfdiff_table ? BrdfTable::read_halfdiff(v.pending.hd) : BrdfTable::read_iso(v.pending.read);
         } else if (model.halfdiff_table) {
-            ci = dot(v.n, to_light);
-            if (!(ci > 0) || !(v.cos_o > 0)) return Rgb(0.0);
+            if (!both_above(v, to_light, &ci)) return Rgb(0.0);
             f = model.halfdiff_table->eval_halfdiff_dirs(v.n, to_light, v.to_eye, model.iso_interp);
         } else {
             double cp;

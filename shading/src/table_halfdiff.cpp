@@ -5,9 +5,6 @@
 #include <cmath>
 #include <stdexcept>
 #include <type_traits>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 #include "shading/table.h"
 
@@ -109,10 +106,8 @@ Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
 #if defined(__SSE2__)
     if (C == 3) {
         // Channels 0 and 1 as a pair of doubles: the same operations in the same order as
-        // the loop below, so the same bits (floats -> doubles as in read_iso).
-        auto pair = [](const float* p) {
-            return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))));
-        };
+        // the loop below, so the same bits.
+        auto pair = detail::load_float_pair;
         const __m128d tp2 = _mm_set1_pd(tp), up2 = _mm_set1_pd(1.0 - tp);
         __m128d acc01 = _mm_setzero_pd();
         double acc2 = 0;

@@ -58,6 +58,17 @@ namespace shading {
 
 class TableSampler;  // table_sampler.h
 
+#if defined(__SSE2__)
+namespace detail {
+// Two consecutive floats (a node's channels 0 and 1) as a pair of doubles, by movq + cvtps2pd:
+// _mm_loadl_epi64 reads through an unaligned, may-alias type (table floats are only 4-byte
+// aligned). The renderer's table reads (read_iso, read_halfdiff) take channels 0 and 1 so.
+inline __m128d load_float_pair(const float* p) {
+    return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))));
+}
+}  // namespace detail
+#endif
+
 // Every loader/validation failure. Messages read "NAME: offset N: expected X, found Y",
 // N being the byte offset in the file (or buffer) where the problem was found.
 class TableError : public std::runtime_error {
@@ -233,11 +244,8 @@ public:
         if (C == 1) return Rgb(channel(0));
 #if defined(__SSE2__)
         // Channels 0 and 1 as a pair of doubles: the same operations in the same order, so
-        // the same bits. Two floats -> two doubles by movq + cvtps2pd (_mm_loadl_epi64 reads
-        // through an unaligned, may-alias type: the floats are only 4-byte aligned).
-        auto pair = [](const float* p) {
-            return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))));
-        };
+        // the same bits.
+        auto pair = detail::load_float_pair;
         auto lerp2 = [](__m128d a, __m128d b, __m128d t) { return _mm_add_pd(a, _mm_mul_pd(t, _mm_sub_pd(b, a))); };
         const __m128d tp = _mm_set1_pd(rd.t_phi), ti = _mm_set1_pd(rd.t_i), tr = _mm_set1_pd(rd.t_r);
         __m128d r[4];
