@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
-#include <type_traits>
 
 #include "shading/table.h"
 
@@ -14,9 +13,11 @@ namespace {
 
 constexpr double kHalfPi = kPi / 2;
 
-void require_halfdiff(const TableGeometry& g, const char* what) {
-    if (g.layout != TableLayout::HalfDiff)
-        throw std::logic_error(std::string(what) + ": not a half/difference table (" + g.describe() + ")");
+[[noreturn, gnu::noinline, gnu::cold]] void not_halfdiff(const TableGeometry& g, const char* what) {
+    throw std::logic_error(std::string(what) + ": not a half/difference table (" + g.describe() + ")");
+}
+inline void require_halfdiff(const TableGeometry& g, const char* what) {
+    if (g.layout != TableLayout::HalfDiff) not_halfdiff(g, what);
 }
 
 }  // namespace
@@ -36,7 +37,7 @@ bool TableGeometry::halfdiff_node_pair(const uint32_t idx[4], Vec3& wi, Vec3& wo
 
 // `x` is the position in bin units: node k (the centre of bin k) is at x = k + 1/2, so
 // floor(x) is MERL's reference bin (merl.h) and x - 1/2 the fractional node index.
-inline BrdfTable::HdPos BrdfTable::locate_hd(int axis, double x, Interp interp) const {
+[[gnu::always_inline]] inline BrdfTable::HdPos BrdfTable::locate_hd(int axis, double x, Interp interp) const {
     const int32_t n = int32_t(geom_.n[axis]);
     if (axis == 2) {  // phi_d: periodic, x already in [0, n] (or NaN)
         if (!(x >= 0) || x >= double(n)) x = 0;  // NaN, or pi folding onto 0 (same direction pair)
@@ -61,7 +62,7 @@ inline BrdfTable::HdPos BrdfTable::locate_hd(int axis, double x, Interp interp) 
     return {i0, i0 + 1, y - double(i0)};
 }
 
-void BrdfTable::rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const {
+[[gnu::always_inline]] inline void BrdfTable::rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const {
     const int C = geom_.channels;
     rd->channels = C;
     // The (theta_h, theta_d) row of a corner: a pointer to its phi_d = 0 value, and the stride
@@ -81,13 +82,10 @@ void BrdfTable::rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const {
     }
     // Bilinear in (theta_h, theta_d) over four rows, each linear in phi_d.
     rd->nearest = false;
-    const double th = pos[0].t, td = pos[1].t;
-    const int32_t ii[4] = {pos[0].i0, pos[0].i0, pos[0].i1, pos[0].i1}, jj[4] = {pos[1].i0, pos[1].i1, pos[1].i0, pos[1].i1};
-    rd->w[0] = (1.0 - th) * (1.0 - td);
-    rd->w[1] = (1.0 - th) * td;
-    rd->w[2] = th * (1.0 - td);
-    rd->w[3] = th * td;
+    rd->t_h = pos[0].t;
+    rd->t_d = pos[1].t;
     rd->t_phi = pos[2].t;
+    const int32_t ii[4] = {pos[0].i0, pos[0].i0, pos[0].i1, pos[0].i1}, jj[4] = {pos[1].i0, pos[1].i1, pos[1].i0, pos[1].i1};
     const uint64_t k0 = uint64_t(pos[2].i0), k1 = uint64_t(pos[2].i1);
     for (int q = 0; q < 4; ++q) {
         const float* p = row(ii[q], jj[q], s);
@@ -96,43 +94,10 @@ void BrdfTable::rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const {
     }
 }
 
+// Rows (h0,d0) (h0,d1) (h1,d0) (h1,d1): theta_d inner, theta_h outer.
 Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
-    const int C = rd.channels;
-    if (rd.nearest) {
-        const float* p = rd.a[0];
-        return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
-    }
-    const double tp = rd.t_phi;
-#if defined(__SSE2__)
-    if (C == 3) {
-        // Channels 0 and 1 as a pair of doubles: the same operations in the same order as
-        // the loop below, so the same bits.
-        auto pair = detail::load_float_pair;
-        const __m128d tp2 = _mm_set1_pd(tp), up2 = _mm_set1_pd(1.0 - tp);
-        __m128d acc01 = _mm_setzero_pd();
-        double acc2 = 0;
-        for (int q = 0; q < 4; ++q) {
-            const double w = rd.w[q];
-            if (w == 0.0) continue;  // exact at nodes, and no read of a weightless row
-            const float *a = rd.a[q], *b = rd.b[q];
-            acc01 = _mm_add_pd(acc01, _mm_mul_pd(_mm_set1_pd(w), _mm_add_pd(_mm_mul_pd(up2, pair(a)), _mm_mul_pd(tp2, pair(b)))));
-            acc2 += w * ((1.0 - tp) * double(a[2]) + tp * double(b[2]));
-        }
-        return Rgb(_mm_cvtsd_f64(acc01), _mm_cvtsd_f64(_mm_unpackhi_pd(acc01, acc01)), acc2);
-    }
-#endif
-    // The channel count as a constant (cc): no channel loop.
-    auto bilinear = [&](auto cc) {
-        constexpr int CC = decltype(cc)::value;
-        double acc[3] = {0, 0, 0};
-        for (int q = 0; q < 4; ++q) {
-            if (rd.w[q] == 0.0) continue;  // exact at nodes, and no read of a weightless row
-            const float *a = rd.a[q], *b = rd.b[q];
-            for (int c = 0; c < CC; ++c) acc[c] += rd.w[q] * ((1.0 - tp) * double(a[c]) + tp * double(b[c]));
-        }
-        return CC == 1 ? Rgb(acc[0]) : Rgb(acc[0], acc[1], acc[2]);
-    };
-    return C == 1 ? bilinear(std::integral_constant<int, 1>()) : bilinear(std::integral_constant<int, 3>());
+    return detail::read_four_rows(
+        rd.a, [&](int k) { return rd.b[k]; }, rd.t_phi, rd.t_d, rd.t_h, rd.channels, rd.nearest);
 }
 
 Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
@@ -143,7 +108,7 @@ Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
 
 // theta_h, theta_d in [0, pi/2] (clamped), phi_d in [0, pi] (pi is the same pair as 0).
 // The bin positions are computed exactly as MERL's reference reader computes its bins.
-void BrdfTable::locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp, HdPos pos[3]) const {
+[[gnu::always_inline]] inline void BrdfTable::locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp, HdPos pos[3]) const {
     theta_h = std::min(theta_h, kHalfPi);
     theta_d = std::min(theta_d, kHalfPi);
     pos[0] = locate_hd(0, theta_h > 0 ? std::sqrt(theta_h / kHalfPi) * double(geom_.n[0]) : 0.0, interp);

@@ -69,6 +69,39 @@ inline __m128d load_float_pair(const float* p) {
 }  // namespace detail
 #endif
 
+namespace detail {
+// The renderer's table read, both layouts: four rows r[k] of a table, each linear between
+// two nodes of its periodic/last axis (a[k] and second(k), t_phi), then bilinear as
+// lerp(lerp(r0, r1, t_in), lerp(r2, r3, t_in), t_out), each lerp a + t (b - a): about half
+// the arithmetic of eight weighted corners, and a short dependency chain. t = 0 returns a
+// node exactly; t = 1 returns it to within the rounding of b - a (exact unless the two values
+// differ by 2^29 or more). C channels (1 or 3); nearest: the node at a[0] alone.
+template <class Second>
+inline Rgb read_four_rows(const float* const a[4], Second second, double t_phi, double t_in, double t_out, int C,
+                          bool nearest) {
+    if (nearest) return C == 1 ? Rgb(a[0][0]) : Rgb(a[0][0], a[0][1], a[0][2]);
+    auto lerp = [](double x, double y, double t) { return x + t * (y - x); };
+    auto channel = [&](int c) {
+        double r[4];
+        for (int k = 0; k < 4; ++k) r[k] = lerp(double(a[k][c]), double(second(k)[c]), t_phi);
+        return lerp(lerp(r[0], r[1], t_in), lerp(r[2], r[3], t_in), t_out);
+    };
+    if (C == 1) return Rgb(channel(0));
+#if defined(__SSE2__)
+    // Channels 0 and 1 as a pair of doubles: the same operations in the same order, so the
+    // same bits.
+    auto lerp2 = [](__m128d x, __m128d y, __m128d t) { return _mm_add_pd(x, _mm_mul_pd(t, _mm_sub_pd(y, x))); };
+    const __m128d tp = _mm_set1_pd(t_phi), ti = _mm_set1_pd(t_in), to = _mm_set1_pd(t_out);
+    __m128d r[4];
+    for (int k = 0; k < 4; ++k) r[k] = lerp2(load_float_pair(a[k]), load_float_pair(second(k)), tp);
+    const __m128d rg = lerp2(lerp2(r[0], r[1], ti), lerp2(r[2], r[3], ti), to);
+    return Rgb(_mm_cvtsd_f64(rg), _mm_cvtsd_f64(_mm_unpackhi_pd(rg, rg)), channel(2));
+#else
+    return Rgb(channel(0), channel(1), channel(2));
+#endif
+}
+}  // namespace detail
+
 // Every loader/validation failure. Messages read "NAME: offset N: expected X, found Y",
 // N being the byte offset in the file (or buffer) where the problem was found.
 class TableError : public std::runtime_error {
@@ -191,8 +224,7 @@ public:
     struct HdRead {
         const float* a[4] = {nullptr, nullptr, nullptr, nullptr};  // rows (h0,d0) (h0,d1) (h1,d0) (h1,d1) at phi_d node i0
         const float* b[4] = {nullptr, nullptr, nullptr, nullptr};  // the same rows at phi_d node i1
-        double w[4] = {0, 0, 0, 0};  // bilinear (theta_h, theta_d) weights; 0: the row is not read
-        double t_phi = 0;
+        double t_h = 0, t_d = 0, t_phi = 0;  // weights of the second node on each axis
         int channels = 3;
         bool nearest = false;  // a[0] alone
     };
@@ -223,38 +255,12 @@ public:
         bool nearest = false;     // row[0] alone
     };
     void prepare_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp, IsoRead* read) const;
-    // Trilinear as three rounds of linear interpolation a + t (b - a): phi inside each of the
-    // four (theta_i, theta_r) rows, then theta_i, then theta_r (about half the arithmetic of
-    // gather()'s eight weighted corners, and a short dependency chain on the renderer's
-    // per-light path; inline, so the renderer's call site holds it). t = 0 returns a node
-    // exactly; t = 1 returns it to within the rounding of b - a (exact unless the two values
-    // differ by 2^29 or more). The two phi nodes of a row are neighbours in memory.
+    // Trilinear by detail::read_four_rows: phi inside each of the four (theta_i, theta_r)
+    // rows, then theta_i, then theta_r (inline, so the renderer's call site holds it). The
+    // two phi nodes of a row are neighbours in memory.
     static Rgb read_iso(const IsoRead& rd) {
-        const int C = rd.channels;
-        if (rd.nearest) {
-            const float* p = rd.row[0];
-            return C == 1 ? Rgb(p[0]) : Rgb(p[0], p[1], p[2]);
-        }
-        auto lerp = [](double a, double b, double t) { return a + t * (b - a); };
-        auto channel = [&](int c) {
-            double r[4];
-            for (int k = 0; k < 4; ++k) r[k] = lerp(double(rd.row[k][c]), double(rd.row[k][rd.dphi + c]), rd.t_phi);
-            return lerp(lerp(r[0], r[1], rd.t_i), lerp(r[2], r[3], rd.t_i), rd.t_r);
-        };
-        if (C == 1) return Rgb(channel(0));
-#if defined(__SSE2__)
-        // Channels 0 and 1 as a pair of doubles: the same operations in the same order, so
-        // the same bits.
-        auto pair = detail::load_float_pair;
-        auto lerp2 = [](__m128d a, __m128d b, __m128d t) { return _mm_add_pd(a, _mm_mul_pd(t, _mm_sub_pd(b, a))); };
-        const __m128d tp = _mm_set1_pd(rd.t_phi), ti = _mm_set1_pd(rd.t_i), tr = _mm_set1_pd(rd.t_r);
-        __m128d r[4];
-        for (int k = 0; k < 4; ++k) r[k] = lerp2(pair(rd.row[k]), pair(rd.row[k] + rd.dphi), tp);
-        const __m128d rg = lerp2(lerp2(r[0], r[1], ti), lerp2(r[2], r[3], ti), tr);
-        return Rgb(_mm_cvtsd_f64(rg), _mm_cvtsd_f64(_mm_unpackhi_pd(rg, rg)), channel(2));
-#else
-        return Rgb(channel(0), channel(1), channel(2));
-#endif
+        return detail::read_four_rows(
+            rd.row, [&](int k) { return rd.row[k] + rd.dphi; }, rd.t_phi, rd.t_i, rd.t_r, rd.channels, rd.nearest);
     }
 
     // Stored value at a node, unfolded indices per axis (folded tables swap theta indices).
