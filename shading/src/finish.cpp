@@ -149,7 +149,10 @@ std::uint64_t FinishModel::next_finish_serial() {
 
 const FinishView* finish_view_remake(int handle, const Vec3& n, const Vec3& to_eye, FinishView* v) {
     const std::uint64_t generation = finish_model_generation();
-    const FinishModel* model = finish_model_get(handle);
+    // The handle still names the model the view was made from while no handle has changed
+    // its model since (the next hit on the same finish: no registry lookup).
+    const FinishModel* model =
+        handle != 0 && v->handle == handle && v->generation == generation ? v->model : finish_model_get(handle);
     if (!model) return nullptr;
     finish_view(*model, n, to_eye, v);
     v->handle = handle;
@@ -193,7 +196,6 @@ bool table_cosines(const FinishView& v, const Vec3& to_light, double* ci, double
     *cp = ss > 0 ? (dot(to_light, v.to_eye) - *ci * v.cos_o) / std::sqrt(ss) : 1.0;
     return true;
 }
-bool same(const Vec3& a, const Vec3& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 }  // namespace
 
 void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
@@ -202,7 +204,7 @@ void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
     FinishView::Pending& p = v->pending;
     if (model.halfdiff_table) {
         if (!both_above(*v, to_light, &p.cos_i)) return;
-        model.halfdiff_table->prepare_halfdiff_dirs(v->n, to_light, v->to_eye, model.iso_interp, &p.hd);
+        model.halfdiff_table->prepare_halfdiff_dirs(v->n, to_light, v->to_eye, p.cos_i, v->cos_o, model.iso_interp, &p.hd);
         p.to_light = to_light;
         p.valid = true;
         return;
@@ -215,15 +217,13 @@ void finish_light_prefetch(FinishView* v, const Vec3& to_light) {
     p.valid = true;
 }
 
-Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
+// finish_light_weight without a prefetched light (finish.h: the prefetched one inline).
+Rgb finish_light_weight_fresh(const FinishView& v, const Vec3& to_light, const Rgb& pigment) {
     const FinishModel& model = *v.model;
     if (model.halfdiff_table || model.iso_table) {
         Rgb f;
         double ci;
-        if (v.pending.valid && same(v.pending.to_light, to_light)) {
-            ci = v.pending.cos_i;  // located (and prefetched) before the shadow test
-            f = model.halfdiff_table ? BrdfTable::read_halfdiff(v.pending.hd) : BrdfTable::read_iso(v.pending.read);
-        } else if (model.halfdiff_table) {
+        if (model.halfdiff_table) {
             if (!both_above(v, to_light, &ci)) return Rgb(0.0);
             f = model.halfdiff_table->eval_halfdiff_dirs(v.n, to_light, v.to_eye, model.iso_interp);
         } else {
@@ -231,8 +231,7 @@ Rgb finish_light_weight(const FinishView& v, const Vec3& to_light, const Rgb& pi
             if (!table_cosines(v, to_light, &ci, &cp)) return Rgb(0.0);
             f = model.iso_table->eval_iso_cos(ci, v.theta_r, cp, model.iso_interp);
         }
-        Rgb w = f * (kPi * ci) * model.scale;
-        return model.tint ? w * pigment : w;
+        return detail::table_light_weight(model, f, ci, pigment);
     }
     Rgb w = pov_weight(*model.brdf, v.wo, v.frame.to_local(to_light), v.brdf) * model.scale;
     return model.tint ? w * pigment : w;

@@ -85,8 +85,20 @@ bool TableGeometry::halfdiff_node_pair(const uint32_t idx[4], Vec3& wi, Vec3& wo
     rd->t_h = pos[0].t;
     rd->t_d = pos[1].t;
     rd->t_phi = pos[2].t;
-    const int32_t ii[4] = {pos[0].i0, pos[0].i0, pos[0].i1, pos[0].i1}, jj[4] = {pos[1].i0, pos[1].i1, pos[1].i0, pos[1].i1};
     const uint64_t k0 = uint64_t(pos[2].i0), k1 = uint64_t(pos[2].i1);
+    if (pos[0].i0 >= 0 && pos[1].i0 >= 0) {  // no pole row (i1 >= i0): offsets written out
+        const float* a = values_.data() + k0 * stride_[2];
+        const uint64_t h0 = uint64_t(pos[0].i0) * stride_[0], h1 = uint64_t(pos[0].i1) * stride_[0];
+        const uint64_t d0 = uint64_t(pos[1].i0) * stride_[1], d1 = uint64_t(pos[1].i1) * stride_[1];
+        const int64_t dk = (int64_t(k1) - int64_t(k0)) * int64_t(stride_[2]);  // < 0 across phi_d's wrap
+        rd->a[0] = a + (h0 + d0);
+        rd->a[1] = a + (h0 + d1);
+        rd->a[2] = a + (h1 + d0);
+        rd->a[3] = a + (h1 + d1);
+        for (int q = 0; q < 4; ++q) rd->b[q] = rd->a[q] + dk;
+        return;
+    }
+    const int32_t ii[4] = {pos[0].i0, pos[0].i0, pos[0].i1, pos[0].i1}, jj[4] = {pos[1].i0, pos[1].i1, pos[1].i0, pos[1].i1};
     for (int q = 0; q < 4; ++q) {
         const float* p = row(ii[q], jj[q], s);
         rd->a[q] = p + k0 * s;
@@ -136,12 +148,13 @@ Rgb BrdfTable::eval_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo,
     return read_halfdiff(rd);
 }
 
-void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp, HdRead* rd) const {
+void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, double cos_i, double cos_o,
+                                      Interp interp, HdRead* rd) const {
     require_halfdiff(geom_, "prepare_halfdiff_dirs");
     // h = wi + wo, unnormalised. b = n x h is the half frame's y axis times |h| sin(theta_h),
-    // so theta_h = atan2(|b|, n.h) keeps full precision at the peak (acos would not), and in
-    // that frame d.y = wi.b / |b| and d.x = |h| (n.wo - n.wi) / (2 |b|) (expand
-    // wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio. |h| = 2 cos(theta_d)
+    // so theta_h = atan2(|b|, n.h), n.h = cos_i + cos_o, keeps full precision at the peak
+    // (acos would not), and in that frame d.y = wi.b / |b| and d.x = |h| (cos_o - cos_i) /
+    // (2 |b|) (expand wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio. |h| = 2 cos(theta_d)
     // and |wi - wo| = 2 sin(theta_d): theta_d by atan2 too, precise at both ends. The three
     // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16); phi_d's y is made
     // >= 0 by turning the pair by pi (reciprocity: phi_d and phi_d + pi are the same pair). At
@@ -150,9 +163,9 @@ void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3&
     const Vec3 h = wi + wo;
     const Vec3 b = cross(n, h);
     const double hl = length(h);
-    const double theta_h = atan2_upper(length(b), dot(n, h));
+    const double theta_h = atan2_upper(length(b), cos_i + cos_o);
     const double theta_d = atan2_upper(length(wi - wo), hl);
-    const double y = dot(wi, b), x = 0.5 * hl * (dot(n, wo) - dot(n, wi));
+    const double y = dot(wi, b), x = 0.5 * hl * (cos_o - cos_i);
     const double phi_d = y < 0 ? atan2_upper(-y, -x) : atan2_upper(y, x);
     HdPos pos[3];
     locate_all_hd(theta_h, theta_d, phi_d, interp, pos);

@@ -205,7 +205,24 @@ int finish_model_with_tangent(int handle, const Vec3& tangent);
 // space). Applies pov_weight() (pi * f * cos_i), the user scale and the optional tint.
 // The renderer makes one FinishView per hit and calls the view form for each light; the
 // other form makes the view itself (same result).
-Rgb finish_light_weight(const FinishView& view, const Vec3& to_light, const Rgb& pigment);
+// Inline for a light finish_light_prefetch located (the renderer's per-light call then holds
+// the table read); otherwise finish_light_weight_fresh.
+namespace detail {
+// A table's value f as the light's weight (pov_weight): pi f cos_i, the user scale, the tint.
+inline Rgb table_light_weight(const FinishModel& model, const Rgb& f, double cos_i, const Rgb& pigment) {
+    const Rgb w = f * (kPi * cos_i) * model.scale;
+    return model.tint ? w * pigment : w;
+}
+}  // namespace detail
+Rgb finish_light_weight_fresh(const FinishView& view, const Vec3& to_light, const Rgb& pigment);
+inline Rgb finish_light_weight(const FinishView& view, const Vec3& to_light, const Rgb& pigment) {
+    const FinishView::Pending& p = view.pending;
+    if (!(p.valid && p.to_light.x == to_light.x && p.to_light.y == to_light.y && p.to_light.z == to_light.z))
+        return finish_light_weight_fresh(view, to_light, pigment);
+    const FinishModel& model = *view.model;
+    const Rgb f = model.halfdiff_table ? BrdfTable::read_halfdiff(p.hd) : BrdfTable::read_iso(p.read);
+    return detail::table_light_weight(model, f, p.cos_i, pigment);
+}
 // Starts reading the table cells a light will need (isotropic tables; a no-op otherwise) and
 // remembers their coordinates in the view: called before the renderer's shadow test, it lets
 // the memory latency of the read overlap the test; finish_light_weight for the same light

@@ -228,7 +228,12 @@ public:
         int channels = 3;
         bool nearest = false;  // a[0] alone
     };
-    void prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp, HdRead* rd) const;
+    void prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, Interp interp, HdRead* rd) const {
+        prepare_halfdiff_dirs(n, wi, wo, dot(n, wi), dot(n, wo), interp, rd);
+    }
+    // The same with cos_i = dot(n, wi) and cos_o = dot(n, wo) as the caller computed them.
+    void prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, double cos_i, double cos_o, Interp interp,
+                               HdRead* rd) const;
     static Rgb read_halfdiff(const HdRead& rd);
     bool halfdiff() const { return geom_.layout == TableLayout::HalfDiff; }
     // The renderer's per-light lookup (isotropic tables; others fall back to eval_iso): from
