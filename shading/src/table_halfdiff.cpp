@@ -120,7 +120,8 @@ Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
 
 // theta_h, theta_d in [0, pi/2] (clamped), phi_d in [0, pi] (pi is the same pair as 0).
 // The bin positions are computed exactly as MERL's reference reader computes its bins.
-[[gnu::always_inline]] inline void BrdfTable::locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp, HdPos pos[3]) const {
+[[gnu::always_inline]] inline void BrdfTable::locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp,
+                                                            HdPos pos[3]) const {
     theta_h = std::min(theta_h, kHalfPi);
     theta_d = std::min(theta_d, kHalfPi);
     pos[0] = locate_hd(0, theta_h > 0 ? std::sqrt(theta_h / kHalfPi) * double(geom_.n[0]) : 0.0, interp);
@@ -154,8 +155,9 @@ void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3&
     // h = wi + wo, unnormalised. b = n x h is the half frame's y axis times |h| sin(theta_h),
     // so theta_h = atan2(|b|, n.h), n.h = cos_i + cos_o, keeps full precision at the peak
     // (acos would not), and in that frame d.y = wi.b / |b| and d.x = |h| (cos_o - cos_i) /
-    // (2 |b|) (expand wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio. |h| = 2 cos(theta_d)
-    // and |wi - wo| = 2 sin(theta_d): theta_d by atan2 too, precise at both ends. The three
+    // (2 |b|) (expand wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio.
+    // |h| = 2 cos(theta_d) and |wi - wo| = 2 sin(theta_d): theta_d by atan2 too, precise at
+    // both ends (acos_approx's 8e-11 rad would not keep a node exact to 1e-9). The three
     // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16); phi_d's y is made
     // >= 0 by turning the pair by pi (reciprocity: phi_d and phi_d + pi are the same pair). At
     // h = 0 (wi = -wo, both on the horizon) everything stays finite; at theta_h = 0 or
