@@ -442,7 +442,7 @@ inline BrdfTable::AxisPos locate_nodes(double x, uint32_t n, Interp interp) {
 }
 }  // namespace
 
-BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp interp) const {
+inline BrdfTable::AxisPos BrdfTable::locate_in_range(int axis, double deg, Interp interp) const {
     return locate_nodes(deg * inv_step_[axis], geom_.n[axis], interp);
 }
 
@@ -501,7 +501,7 @@ Rgb BrdfTable::eval_iso_cos(double cos_i, double cos_r, double cos_phi, Interp i
 }
 
 BrdfTable::AxisPos BrdfTable::locate_theta_r_cos(double cos_r, Interp interp) const {
-    return locate_nodes(acos_approx(std::clamp(cos_r, 0.0, 1.0)) * kRadToDeg * inv_step_[1], geom_.n[1], interp);
+    return locate_in_range(1, acos_approx(std::clamp(cos_r, 0.0, 1.0)) * kRadToDeg, interp);
 }
 
 Rgb BrdfTable::eval_iso_cos(double cos_i, const AxisPos& theta_r, double cos_phi, Interp interp) const {
