@@ -158,15 +158,16 @@ void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3&
     // (2 |b|) (expand wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio.
     // |h| = 2 cos(theta_d) and |wi - wo| = 2 sin(theta_d): theta_d by atan2 too, precise at
     // both ends (acos_approx's 8e-11 rad would not keep a node exact to 1e-9). The three
-    // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16); phi_d's y is made
-    // >= 0 by turning the pair by pi (reciprocity: phi_d and phi_d + pi are the same pair). At
+    // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16), theta_h and theta_d
+    // as one pair (atan2_upper2: the same bits, one division); phi_d's y is made >= 0 by
+    // turning the pair by pi (reciprocity: phi_d and phi_d + pi are the same pair). At
     // h = 0 (wi = -wo, both on the horizon) everything stays finite; at theta_h = 0 or
     // theta_d = 0 phi_d is undefined and the virtual poles make the value independent of it.
     const Vec3 h = wi + wo;
     const Vec3 b = cross(n, h);
     const double hl = length(h);
-    const double theta_h = atan2_upper(length(b), cos_i + cos_o);
-    const double theta_d = atan2_upper(length(wi - wo), hl);
+    double theta_h, theta_d;
+    atan2_upper2(length(b), cos_i + cos_o, length(wi - wo), hl, &theta_h, &theta_d);
     const double y = dot(wi, b), x = 0.5 * hl * (cos_o - cos_i);
     const double phi_d = y < 0 ? atan2_upper(-y, -x) : atan2_upper(y, x);
     HdPos pos[3];

@@ -127,6 +127,35 @@ TEST(Atan2Upper, WithinRelativeBoundOfLibmEverywhereAbove) {
     EXPECT_TRUE(std::isnan(atan2_upper(1.0, std::nan(""))));
 }
 
+TEST(Atan2Upper, PairGivesTheBitsOfTwoCalls) {
+    // atan2_upper2 (two lanes of one SSE2 register, branches as masks) against atan2_upper,
+    // bit for bit: random pairs of both signs of x, each side of the reduction (|u| = tan(pi/8))
+    // and of y = |x|, tiny and huge ratios, signed zeros, infinities and NaN (the scalar
+    // fallback), each lane paired with the others.
+    std::vector<double> ys = {0.0, 1e-300, 1e-20, 0.5, 1.0, 1e20, HUGE_VAL, std::nan("")};
+    std::vector<double> xs = {1.0, -1.0, 0.0, -0.0, 1e-300, -1e-300, 0.41421356237309503, -0.41421356237309503,
+                              std::nextafter(0.41421356237309503, 1.0), 1e20, -1e20, HUGE_VAL, -HUGE_VAL,
+                              std::nan("")};
+    Rng rng(93);
+    for (int i = 0; i < 100000; ++i) {
+        const double y = rng(), x = 2.0 * rng() - 1.0;
+        ys.push_back(y);
+        xs.push_back(x);
+        ys.push_back(y * 1e-9);
+        xs.push_back(i % 2 ? y : -y);  // y = |x|: neither y < |x| nor y > |x|
+    }
+    const size_t n = std::max(ys.size(), xs.size());
+    for (size_t i = 0; i < n; ++i) {
+        const double y0 = ys[i % ys.size()], x0 = xs[i % xs.size()];
+        const double y1 = ys[(i * 7919 + 13) % ys.size()], x1 = xs[(i * 104729 + 7) % xs.size()];
+        double a0, a1;
+        atan2_upper2(y0, x0, y1, x1, &a0, &a1);
+        const double e0 = atan2_upper(y0, x0), e1 = atan2_upper(y1, x1);
+        ASSERT_EQ(std::memcmp(&a0, &e0, sizeof a0), 0) << y0 << " " << x0 << " " << a0 << " " << e0;
+        ASSERT_EQ(std::memcmp(&a1, &e1, sizeof a1), 0) << y1 << " " << x1 << " " << a1 << " " << e1;
+    }
+}
+
 TEST(TableLookup, CosineLookupFindsTheRowsAndWeightsOfItsDefinition) {
     // prepare_iso_cos (both axes located at once on the renderer's path) against the layout
     // written out here: theta = acos_approx(cos) in degrees over the step, clamped to

@@ -161,6 +161,62 @@ inline double atan2_upper(double y, double x) {
     return x < 0 ? kPi - a : a;
 }
 
+// atan2_upper of two pairs at once: the same operations in the same order on the two lanes
+// of an SSE2 register (the branches as masks), so the same bits as two calls (tested); the
+// half/difference lookup needs theta_h and theta_d together. A lane with max(y, |x|) zero
+// or NaN (rare) sends both to the scalar function.
+inline void atan2_upper2(double y0, double x0, double y1, double x1, double* a0, double* a1) {
+#if defined(__SSE2__)
+    alignas(16) static constexpr double k[][2] = {
+        {-0.0, -0.0},
+        {0.41421356237309503, 0.41421356237309503},
+        {kPi / 4, kPi / 4},
+        {kPi / 2, kPi / 2},
+        {kPi, kPi},
+        {-0.3333333333333319, -0.3333333333333319},
+        {0.19999999999915422, 0.19999999999915422},
+        {-0.14285714269385189, -0.14285714269385189},
+        {0.11111109825767462, 0.11111109825767462},
+        {-0.09090857872493935, -0.09090857872493935},
+        {0.07691139307584897, 0.07691139307584897},
+        {-0.06650402375489083, -0.06650402375489083},
+        {0.05740672398985412, 0.05740672398985412},
+        {-0.044962952756785274, -0.044962952756785274},
+        {0.0229126008553073, 0.0229126008553073}};
+    const double(*kp)[2] = k;  // hidden from the optimiser, as in acos_approx2
+#if defined(__GNUC__)
+    __asm__("" : "+r"(kp));
+#endif
+    auto K = [&](int i) { return _mm_load_pd(kp[i]); };
+    auto pick = [](__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); };
+    const __m128d y = _mm_set_pd(y1, y0), x = _mm_set_pd(x1, x0);
+    const __m128d ax = _mm_andnot_pd(K(0), x);
+    const __m128d lt = _mm_cmplt_pd(y, ax);
+    const __m128d s = pick(lt, y, ax), g = pick(lt, ax, y);
+    if (_mm_movemask_pd(_mm_cmpgt_pd(g, _mm_setzero_pd())) != 3) {
+        *a0 = atan2_upper(y0, x0);
+        *a1 = atan2_upper(y1, x1);
+        return;
+    }
+    const __m128d reduce = _mm_cmpgt_pd(s, _mm_mul_pd(K(1), g));
+    const __m128d u = _mm_div_pd(pick(reduce, _mm_sub_pd(s, g), s), pick(reduce, _mm_add_pd(s, g), g));
+    const __m128d z = _mm_mul_pd(u, u), z2 = _mm_mul_pd(z, z), z4 = _mm_mul_pd(z2, z2), z8 = _mm_mul_pd(z4, z4);
+    auto lin = [&](int i) { return _mm_add_pd(K(i), _mm_mul_pd(K(i + 1), z)); };
+    const __m128d e0 = lin(5), e1 = lin(7), e2 = lin(9), e3 = lin(11), e4 = lin(13);
+    const __m128d r = _mm_add_pd(_mm_add_pd(_mm_add_pd(e0, _mm_mul_pd(e1, z2)), _mm_mul_pd(_mm_add_pd(e2, _mm_mul_pd(e3, z2)), z4)),
+                                 _mm_mul_pd(e4, z8));
+    __m128d a = _mm_add_pd(u, _mm_mul_pd(_mm_mul_pd(u, z), r));
+    a = pick(reduce, _mm_add_pd(a, K(2)), a);
+    a = pick(_mm_cmpgt_pd(y, ax), _mm_sub_pd(K(3), a), a);
+    a = pick(_mm_cmplt_pd(x, _mm_setzero_pd()), _mm_sub_pd(K(4), a), a);
+    _mm_storel_pd(a0, a);
+    _mm_storeh_pd(a1, a);
+#else
+    *a0 = atan2_upper(y0, x0);
+    *a1 = atan2_upper(y1, x1);
+#endif
+}
+
 // Local-frame trigonometry (normal = +z, tangent = +x).
 inline double cos_theta(const Vec3& w) { return w.z; }
 inline double cos2_theta(const Vec3& w) { return w.z * w.z; }
