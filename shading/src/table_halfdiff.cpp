@@ -106,12 +106,6 @@ bool TableGeometry::halfdiff_node_pair(const uint32_t idx[4], Vec3& wi, Vec3& wo
     }
 }
 
-// Rows (h0,d0) (h0,d1) (h1,d0) (h1,d1): theta_d inner, theta_h outer.
-Rgb BrdfTable::read_halfdiff(const HdRead& rd) {
-    return detail::read_four_rows(
-        rd.a, [&](int k) { return rd.b[k]; }, rd.t_phi, rd.t_d, rd.t_h, rd.channels, rd.nearest);
-}
-
 Rgb BrdfTable::gather_hd(const HdPos pos[3], Interp interp) const {
     HdRead rd;
     rows_hd(pos, interp, &rd);

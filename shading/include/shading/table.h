@@ -234,7 +234,11 @@ public:
     // The same with cos_i = dot(n, wi) and cos_o = dot(n, wo) as the caller computed them.
     void prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3& wo, double cos_i, double cos_o, Interp interp,
                                HdRead* rd) const;
-    static Rgb read_halfdiff(const HdRead& rd);
+    // Rows (h0,d0) (h0,d1) (h1,d0) (h1,d1): theta_d inner, theta_h outer (inline, as read_iso).
+    static Rgb read_halfdiff(const HdRead& rd) {
+        return detail::read_four_rows(
+            rd.a, [&](int k) { return rd.b[k]; }, rd.t_phi, rd.t_d, rd.t_h, rd.channels, rd.nearest);
+    }
     bool halfdiff() const { return geom_.layout == TableLayout::HalfDiff; }
     // The renderer's per-light lookup (isotropic tables; others fall back to eval_iso): from
     // cos(theta_i), cos(theta_r) and cos(phi), the angles through acos_approx (vec.h, within
