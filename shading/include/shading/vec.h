@@ -141,19 +141,25 @@ inline void acos_approx2(double x, double y, double* ax, double* ay) {
 // < 3e-16 on [0, tan(pi/8)] (measured on 4e5 points, and down to 1e-300), so a small angle
 // keeps its full relative precision (the half/difference theta_h axis is dense there).
 // atan2_upper(0, 0) = 0 and (0, x < 0) = pi, as atan2; NaN stays NaN.
+namespace detail {
+// r0 ... r9 of atan2_upper's R and tan(pi/8); atan2_upper2 reads the same numbers as pairs.
+inline constexpr double kAtanR[10] = {-0.3333333333333319,  0.19999999999915422,  -0.14285714269385189,
+                                      0.11111109825767462,  -0.09090857872493935, 0.07691139307584897,
+                                      -0.06650402375489083, 0.05740672398985412,  -0.044962952756785274,
+                                      0.0229126008553073};
+inline constexpr double kTanEighthPi = 0.41421356237309503;
+}  // namespace detail
 inline double atan2_upper(double y, double x) {
     const double ax = std::fabs(x);
     const double s = y < ax ? y : ax, g = y < ax ? ax : y;
     if (!(g > 0)) return g == 0 ? (x < 0 ? kPi : 0.0) : y + x;
-    const bool reduce = s > 0.41421356237309503 * g;  // t > tan(pi/8)
+    const bool reduce = s > detail::kTanEighthPi * g;  // t > tan(pi/8)
     const double u = reduce ? (s - g) / (s + g) : s / g;
     // R by Estrin's scheme, as acos_approx's P.
     const double z = u * u, z2 = z * z, z4 = z2 * z2, z8 = z4 * z4;
-    const double e0 = -0.3333333333333319 + 0.19999999999915422 * z;
-    const double e1 = -0.14285714269385189 + 0.11111109825767462 * z;
-    const double e2 = -0.09090857872493935 + 0.07691139307584897 * z;
-    const double e3 = -0.06650402375489083 + 0.05740672398985412 * z;
-    const double e4 = -0.044962952756785274 + 0.0229126008553073 * z;
+    const double* c = detail::kAtanR;
+    const double e0 = c[0] + c[1] * z, e1 = c[2] + c[3] * z, e2 = c[4] + c[5] * z, e3 = c[6] + c[7] * z,
+                 e4 = c[8] + c[9] * z;
     const double r = (e0 + e1 * z2) + (e2 + e3 * z2) * z4 + e4 * z8;
     double a = u + (u * z) * r;
     if (reduce) a += kPi / 4;
@@ -167,22 +173,13 @@ inline double atan2_upper(double y, double x) {
 // or NaN (rare) sends both to the scalar function.
 inline void atan2_upper2(double y0, double x0, double y1, double x1, double* a0, double* a1) {
 #if defined(__SSE2__)
+    // Every constant as a ready pair, r0 ... r9 from atan2_upper's table.
+    constexpr const double* c = detail::kAtanR;
+    constexpr double t8 = detail::kTanEighthPi;
     alignas(16) static constexpr double k[][2] = {
-        {-0.0, -0.0},
-        {0.41421356237309503, 0.41421356237309503},
-        {kPi / 4, kPi / 4},
-        {kPi / 2, kPi / 2},
-        {kPi, kPi},
-        {-0.3333333333333319, -0.3333333333333319},
-        {0.19999999999915422, 0.19999999999915422},
-        {-0.14285714269385189, -0.14285714269385189},
-        {0.11111109825767462, 0.11111109825767462},
-        {-0.09090857872493935, -0.09090857872493935},
-        {0.07691139307584897, 0.07691139307584897},
-        {-0.06650402375489083, -0.06650402375489083},
-        {0.05740672398985412, 0.05740672398985412},
-        {-0.044962952756785274, -0.044962952756785274},
-        {0.0229126008553073, 0.0229126008553073}};
+        {-0.0, -0.0}, {t8, t8},       {kPi / 4, kPi / 4}, {kPi / 2, kPi / 2}, {kPi, kPi},
+        {c[0], c[0]}, {c[1], c[1]},   {c[2], c[2]},       {c[3], c[3]},       {c[4], c[4]},
+        {c[5], c[5]}, {c[6], c[6]},   {c[7], c[7]},       {c[8], c[8]},       {c[9], c[9]}};
     const double(*kp)[2] = k;  // hidden from the optimiser, as in acos_approx2
 #if defined(__GNUC__)
     __asm__("" : "+r"(kp));
