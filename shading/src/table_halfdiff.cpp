@@ -20,6 +20,20 @@ inline void require_halfdiff(const TableGeometry& g, const char* what) {
     if (g.layout != TableLayout::HalfDiff) not_halfdiff(g, what);
 }
 
+// (y, x) -> (-y, -x) where y < 0, else unchanged: the same numbers as the two branches of a
+// conditional, by a sign mask (the sign of y is not predictable from pixel to pixel).
+inline void turn_to_upper(double& y, double& x) {
+#if defined(__SSE2__)
+    const __m128d v = _mm_set_pd(x, y);
+    const __m128d flip = _mm_and_pd(_mm_cmplt_pd(_mm_set1_pd(y), _mm_setzero_pd()), _mm_set1_pd(-0.0));
+    const __m128d t = _mm_xor_pd(v, flip);
+    y = _mm_cvtsd_f64(t);
+    x = _mm_cvtsd_f64(_mm_unpackhi_pd(t, t));
+#else
+    if (y < 0) y = -y, x = -x;
+#endif
+}
+
 }  // namespace
 
 bool TableGeometry::halfdiff_node_pair(const uint32_t idx[4], Vec3& wi, Vec3& wo) const {
@@ -152,18 +166,22 @@ void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3&
     // (2 |b|) (expand wi.((n x h) x h) with wi.h = |h|^2 / 2): phi_d needs only their ratio.
     // |h| = 2 cos(theta_d) and |wi - wo| = 2 sin(theta_d): theta_d by atan2 too, precise at
     // both ends (acos_approx's 8e-11 rad would not keep a node exact to 1e-9). The three
-    // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16), theta_h and theta_d
-    // as one pair (atan2_upper2: the same bits, one division); phi_d's y is made >= 0 by
-    // turning the pair by pi (reciprocity: phi_d and phi_d + pi are the same pair). At
+    // angles by atan2_upper (vec.h: no libm call, relative error < 3e-16), theta_h and phi_d
+    // as one pair (atan2_upper2: the same bits, one division, no branches: where a highlight
+    // is and the sign of phi_d's y change from pixel to pixel; theta_d, nearly constant over
+    // an object lit by one light, keeps the scalar function's predictable branches); phi_d's
+    // y is made >= 0 by turning the pair by pi (reciprocity: phi_d and phi_d + pi are the
+    // same pair), by a mask too. At
     // h = 0 (wi = -wo, both on the horizon) everything stays finite; at theta_h = 0 or
     // theta_d = 0 phi_d is undefined and the virtual poles make the value independent of it.
     const Vec3 h = wi + wo;
     const Vec3 b = cross(n, h);
     const double hl = length(h);
-    double theta_h, theta_d;
-    atan2_upper2(length(b), cos_i + cos_o, length(wi - wo), hl, &theta_h, &theta_d);
-    const double y = dot(wi, b), x = 0.5 * hl * (cos_o - cos_i);
-    const double phi_d = y < 0 ? atan2_upper(-y, -x) : atan2_upper(y, x);
+    const double theta_d = atan2_upper(length(wi - wo), hl);
+    double y = dot(wi, b), x = 0.5 * hl * (cos_o - cos_i);
+    turn_to_upper(y, x);
+    double theta_h, phi_d;
+    atan2_upper2(length(b), cos_i + cos_o, y, x, &theta_h, &phi_d);
     HdPos pos[3];
     locate_all_hd(theta_h, theta_d, phi_d, interp, pos);
     rows_hd(pos, interp, rd);

@@ -169,7 +169,7 @@ inline double atan2_upper(double y, double x) {
 
 // atan2_upper of two pairs at once: the same operations in the same order on the two lanes
 // of an SSE2 register (the branches as masks), so the same bits as two calls (tested); the
-// half/difference lookup needs theta_h and theta_d together. A lane with max(y, |x|) zero
+// half/difference lookup needs theta_h and phi_d together. A lane with max(y, |x|) zero
 // or NaN (rare) sends both to the scalar function.
 inline void atan2_upper2(double y0, double x0, double y1, double x1, double* a0, double* a1) {
 #if defined(__SSE2__)
