@@ -171,9 +171,9 @@ void BrdfTable::prepare_halfdiff_dirs(const Vec3& n, const Vec3& wi, const Vec3&
     // is and the sign of phi_d's y change from pixel to pixel; theta_d, nearly constant over
     // an object lit by one light, keeps the scalar function's predictable branches); phi_d's
     // y is made >= 0 by turning the pair by pi (reciprocity: phi_d and phi_d + pi are the
-    // same pair), by a mask too. At
-    // h = 0 (wi = -wo, both on the horizon) everything stays finite; at theta_h = 0 or
-    // theta_d = 0 phi_d is undefined and the virtual poles make the value independent of it.
+    // same pair), by a mask too. At h = 0 (wi = -wo, both on the horizon) everything stays
+    // finite; at theta_h = 0 or theta_d = 0 phi_d is undefined and the virtual poles make the
+    // value independent of it.
     const Vec3 h = wi + wo;
     const Vec3 b = cross(n, h);
     const double hl = length(h);
