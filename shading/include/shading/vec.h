@@ -77,6 +77,10 @@ inline double sqr(double x) { return x * x; }
 // 5e-9 of a 1 deg table cell), decreasing, exact at 0 and 1. acos(-x) = pi - acos(x), so the
 // two halves meet exactly at pi/2. x is clamped to [-1, 1]; NaN gives pi/2.
 namespace detail {
+#if defined(__SSE2__)
+// m ? a : b per lane (m all ones or all zeros): the two-lane functions' branches as masks.
+inline __m128d pick_pd(__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); }
+#endif
 // q0 ... q9 of acos_approx's P; acos_approx2 reads the same numbers as pairs.
 inline constexpr double kAcosQ[10] = {-0.21460182476875928,   0.089048041718750054,  -0.050782478358709512,
                                       0.033587281220832758,   -0.023867732483934753, 0.0169165554678881,
@@ -125,7 +129,7 @@ inline void acos_approx2(double x, double y, double* ax, double* ay) {
                                  _mm_mul_pd(e4, a8));
     const __m128d r = _mm_mul_pd(_mm_sqrt_pd(_mm_sub_pd(one, a)), _mm_add_pd(K(2), _mm_mul_pd(a, p)));
     const __m128d neg = _mm_cmplt_pd(v, _mm_setzero_pd());
-    const __m128d out = _mm_or_pd(_mm_and_pd(neg, _mm_sub_pd(K(3), r)), _mm_andnot_pd(neg, r));
+    const __m128d out = detail::pick_pd(neg, _mm_sub_pd(K(3), r), r);
     _mm_storel_pd(ax, out);
     _mm_storeh_pd(ay, out);
 #else
@@ -185,27 +189,27 @@ inline void atan2_upper2(double y0, double x0, double y1, double x1, double* a0,
     __asm__("" : "+r"(kp));
 #endif
     auto K = [&](int i) { return _mm_load_pd(kp[i]); };
-    auto pick = [](__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); };
+    using detail::pick_pd;
     const __m128d y = _mm_set_pd(y1, y0), x = _mm_set_pd(x1, x0);
     const __m128d ax = _mm_andnot_pd(K(0), x);
     const __m128d lt = _mm_cmplt_pd(y, ax);
-    const __m128d s = pick(lt, y, ax), g = pick(lt, ax, y);
+    const __m128d s = pick_pd(lt, y, ax), g = pick_pd(lt, ax, y);
     if (_mm_movemask_pd(_mm_cmpgt_pd(g, _mm_setzero_pd())) != 3) {
         *a0 = atan2_upper(y0, x0);
         *a1 = atan2_upper(y1, x1);
         return;
     }
     const __m128d reduce = _mm_cmpgt_pd(s, _mm_mul_pd(K(1), g));
-    const __m128d u = _mm_div_pd(pick(reduce, _mm_sub_pd(s, g), s), pick(reduce, _mm_add_pd(s, g), g));
+    const __m128d u = _mm_div_pd(pick_pd(reduce, _mm_sub_pd(s, g), s), pick_pd(reduce, _mm_add_pd(s, g), g));
     const __m128d z = _mm_mul_pd(u, u), z2 = _mm_mul_pd(z, z), z4 = _mm_mul_pd(z2, z2), z8 = _mm_mul_pd(z4, z4);
     auto lin = [&](int i) { return _mm_add_pd(K(i), _mm_mul_pd(K(i + 1), z)); };
     const __m128d e0 = lin(5), e1 = lin(7), e2 = lin(9), e3 = lin(11), e4 = lin(13);
     const __m128d r = _mm_add_pd(_mm_add_pd(_mm_add_pd(e0, _mm_mul_pd(e1, z2)), _mm_mul_pd(_mm_add_pd(e2, _mm_mul_pd(e3, z2)), z4)),
                                  _mm_mul_pd(e4, z8));
     __m128d a = _mm_add_pd(u, _mm_mul_pd(_mm_mul_pd(u, z), r));
-    a = pick(reduce, _mm_add_pd(a, K(2)), a);
-    a = pick(_mm_cmpgt_pd(y, ax), _mm_sub_pd(K(3), a), a);
-    a = pick(_mm_cmplt_pd(x, _mm_setzero_pd()), _mm_sub_pd(K(4), a), a);
+    a = pick_pd(reduce, _mm_add_pd(a, K(2)), a);
+    a = pick_pd(_mm_cmpgt_pd(y, ax), _mm_sub_pd(K(3), a), a);
+    a = pick_pd(_mm_cmplt_pd(x, _mm_setzero_pd()), _mm_sub_pd(K(4), a), a);
     _mm_storel_pd(a0, a);
     _mm_storeh_pd(a1, a);
 #else
