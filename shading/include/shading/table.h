@@ -313,6 +313,9 @@ private:
     };
     HdPos locate_hd(int axis, double x, Interp interp) const;  // x: fractional node index
     void rows_hd(const HdPos pos[3], Interp interp, HdRead* rd) const;
+    void rows_hd_interior(const HdPos pos[3], HdRead* rd) const;                // Linear, no pole row
+    [[gnu::noinline]] void rows_hd_edge(const HdPos pos[3], Interp interp, HdRead* rd) const;  // the rest
+    [[gnu::noinline]] void prepare_hd_nearest(double theta_h, double theta_d, double phi_d, HdRead* rd) const;
     Rgb gather_hd(const HdPos pos[3], Interp interp) const;
     // theta_h, theta_d in [0, pi/2] (clamped), phi_d in [0, pi]: the three axis positions
     void locate_all_hd(double theta_h, double theta_d, double phi_d, Interp interp, HdPos pos[3]) const;

@@ -171,6 +171,15 @@ inline double atan2_upper(double y, double x) {
     return x < 0 ? kPi - a : a;
 }
 
+namespace detail {
+// atan2_upper2's rare lanes, out of line (its callers' hot code stays short).
+[[gnu::noinline, gnu::cold]] inline void atan2_upper_each(double y0, double x0, double y1, double x1, double* a0,
+                                                          double* a1) {
+    *a0 = atan2_upper(y0, x0);
+    *a1 = atan2_upper(y1, x1);
+}
+}  // namespace detail
+
 // atan2_upper of two pairs at once: the same operations in the same order on the two lanes
 // of an SSE2 register (the branches as masks), so the same bits as two calls (tested); the
 // half/difference lookup needs theta_h and phi_d together. A lane with max(y, |x|) zero
@@ -194,11 +203,7 @@ inline void atan2_upper2(double y0, double x0, double y1, double x1, double* a0,
     const __m128d ax = _mm_andnot_pd(K(0), x);
     const __m128d lt = _mm_cmplt_pd(y, ax);
     const __m128d s = pick_pd(lt, y, ax), g = pick_pd(lt, ax, y);
-    if (_mm_movemask_pd(_mm_cmpgt_pd(g, _mm_setzero_pd())) != 3) {
-        *a0 = atan2_upper(y0, x0);
-        *a1 = atan2_upper(y1, x1);
-        return;
-    }
+    if (_mm_movemask_pd(_mm_cmpgt_pd(g, _mm_setzero_pd())) != 3) return detail::atan2_upper_each(y0, x0, y1, x1, a0, a1);
     const __m128d reduce = _mm_cmpgt_pd(s, _mm_mul_pd(K(1), g));
     const __m128d u = _mm_div_pd(pick_pd(reduce, _mm_sub_pd(s, g), s), pick_pd(reduce, _mm_add_pd(s, g), g));
     const __m128d z = _mm_mul_pd(u, u), z2 = _mm_mul_pd(z, z), z4 = _mm_mul_pd(z2, z2), z8 = _mm_mul_pd(z4, z4);
