@@ -25,6 +25,18 @@ misses or instruction latencies (a sqrt costs one instruction; builds with fewer
 instructions have traced slower, shading/MODELS.md), so the wall ratio stays the goal's
 measure and the count its steady companion.
 
+The grid rows render each round's image as ``GRID_BANDS`` bands of rows (POV's +SR/+ER),
+every side rendering a band back to back before the next band (``Row.bands``): a round's
+time for a side is the sum over its bands, so the ratio is still the whole image's, but the
+sides are compared within a fraction of a second of each other instead of across a round of
+whole renders, and this machine's drifts (seconds long) fall on both alike. On the grid
+(2026-12-02, one thread, 12 rounds) this took the spread of the per-round ratios of the same
+binary against itself from about +-25 % (whole images) to +-7 %, and the 95 % interval of
+its median to 0.95..1.04. Each band adds POV's fixed per-render trace cost (about 1 ms, ~1 %
+of the grid's trace over 12 bands), which pulls a ratio R toward 1 by about (R - 1) / 100:
+below the third decimal for the goals here. The ``stock phong / stock phong`` row is that
+control, measured in the same rounds.
+
 A row with a ``goal`` also prints the interval that holds its true median wall ratio with 95 %
 probability (order statistics: distribution-free, as the rounds' ratios are skewed by the
 machine's bursts) and a verdict read from it: ``met`` when all of the interval is at or under
@@ -101,6 +113,9 @@ class Row:
     count_instructions: bool = False
     #: the ratio the row must not exceed (its ``verdict``), if it has a goal
     goal: Optional[float] = None
+    #: a round renders the image as this many bands of rows (POV's +SR/+ER), every side of
+    #: the group rendering a band back to back before the next band; 1: whole images
+    bands: int = 1
 
 
 ROWS: list[Row] = []
@@ -189,8 +204,14 @@ def grid_side(finish: str, binary: str = "fork", lookup: str = "") -> Side:
     return Side(binary, GRID_SCENE.format(finish=GRID_PHONG))
 
 
+#: Bands per round of the grid rows (``Row.bands``): 128 rows each.
+GRID_BANDS = 12
+
 for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
-    _kw = dict(width=GRID_SIZE, height=GRID_SIZE, threads=_threads, group=_group, count_instructions=_threads == 1)
+    _kw = dict(width=GRID_SIZE, height=GRID_SIZE, threads=_threads, group=_group, count_instructions=_threads == 1,
+               bands=GRID_BANDS)
+    row(f"{_group}: stock phong / stock phong", grid_side("phong", "stock"), grid_side("phong", "stock"),
+        note="the same binary and scene: the method's own noise", **_kw)
     row(f"{_group}: fork phong / stock phong", grid_side("phong", "stock"), grid_side("phong"),
         note="goal <= 1.00 (+- noise)", goal=1.00, **_kw)
     row(f"{_group}: brdf_table 1 deg trilinear / stock phong", grid_side("phong", "stock"), grid_side("table"),
@@ -292,21 +313,42 @@ class _Times(list):
         self.cpu: list[float] = []
 
 
-def _trace(side: Side, r: Row) -> tuple[float, float]:
-    """(trace wall seconds, trace CPU-seconds) of one render."""
+def band_rows(height: int, bands: int) -> list[tuple[int, int]]:
+    """(first, last) image rows, counted from 1 as POV's +SR/+ER count them, of ``bands``
+    bands that cover ``height`` rows. Each band has at least two rows: POV reads a row
+    number of 1 or less as a fraction of the image (+ER1 is the whole image)."""
+    if not 1 <= bands <= height // 2:
+        raise ValueError(f"{bands} bands of a {height}-row image: 1 to {height // 2}")
+    edges = [round(k * height / bands) for k in range(bands + 1)]
+    return [(edges[k] + 1, edges[k + 1]) for k in range(bands)]
+
+
+def _trace(side: Side, r: Row, band: Optional[tuple[int, int]] = None) -> tuple[float, float]:
+    """(trace wall seconds, trace CPU-seconds) of one render, of the rows ``band`` only if given."""
+    extra = [f"+SR{band[0]}", f"+ER{band[1]}"] if band else []
     res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=r.threads,
-                        files=side.resolved_files())
+                        files=side.resolved_files(), extra_args=extra)
     if res.trace_seconds is None:
         raise RuntimeError(f"{r.name}: POV printed no trace time")
     return res.trace_seconds, float(res.stats.get("trace_cpu_time", res.trace_seconds))
 
 
-def _trace_time(side: Side, r: Row, into: Optional[_Times] = None) -> float:
-    wall, cpu = _trace(side, r)
-    if into is not None:
-        into.append(wall)
-        into.cpu.append(cpu)
-    return wall
+def _round(sides: Sequence[Side], r: Row, i: int, into: Sequence[_Times]) -> None:
+    """Round ``i``: every side renders the whole image once, as ``r.bands`` bands; each band
+    is rendered by every side back to back, in an order that rotates with the band and the
+    round. A side's time for the round (appended to its ``into``) is the sum over the bands."""
+    bands = band_rows(r.height, r.bands) if r.bands > 1 else [None]
+    wall = [0.0] * len(sides)
+    cpu = [0.0] * len(sides)
+    for k, band in enumerate(bands):
+        for m in range(len(sides)):
+            j = (m + i + k) % len(sides)
+            w, c = _trace(sides[j], r, band)
+            wall[j] += w
+            cpu[j] += c
+    for t, w, c in zip(into, wall, cpu):
+        t.append(w)
+        t.cpu.append(c)
 
 
 #: Fractions of a row's image size whose renders' instruction counts are subtracted.
@@ -363,41 +405,32 @@ def count_instructions(results: Sequence[Result], log: Optional[Callable[[str], 
 
 
 def measure(r: Row, repeat: int = 5, log: Optional[Callable[[str], None]] = None) -> Result:
-    """Alternate baseline and candidate renders ``repeat`` times (after one warm-up pair)."""
-    _trace_time(r.baseline, r), _trace_time(r.candidate, r)  # warm file caches
-    base, cand = _Times(), _Times()
-    for i in range(repeat):
-        _trace_time(r.baseline, r, base)
-        _trace_time(r.candidate, r, cand)
-        if log:
-            log(f"  {r.name} [{i + 1}/{repeat}] {base[-1]:.3f} s vs {cand[-1]:.3f} s")
-    return Result(r, list(base), list(cand), base.cpu, cand.cpu)
+    """Baseline and candidate in ``repeat`` interleaved rounds (after one warm-up pair)."""
+    return measure_group([r], repeat, log)[0]
 
 
 def measure_group(rows: Sequence[Row], repeat: int = 5,
                   log: Optional[Callable[[str], None]] = None) -> list[Result]:
     """Rows sharing one baseline, in ``repeat`` interleaved rounds after a warm-up round.
 
-    Each round renders the baseline, then every candidate (the order rotates from round to
-    round); a row's ratios divide its candidate's time by the same round's baseline.
+    Each round renders the baseline and every candidate once (``_round``: the order rotates
+    from round to round, and from band to band where the rows ask for bands); a row's ratios
+    divide its candidate's time by the same round's baseline.
     """
     first = rows[0]
-    assert all(r.baseline == first.baseline and (r.width, r.height, r.threads) ==
-               (first.width, first.height, first.threads) for r in rows), "a group shares its baseline"
-    _trace_time(first.baseline, first)
-    for r in rows:
-        _trace_time(r.candidate, r)  # warm file caches and table caches
-    base = _Times()
-    cand = [_Times() for _ in rows]
+    assert all(r.baseline == first.baseline and (r.width, r.height, r.threads, r.bands) ==
+               (first.width, first.height, first.threads, first.bands) for r in rows), "a group shares its baseline"
+    sides = [first.baseline] + [r.candidate for r in rows]
+    for side in sides:
+        _trace(side, first)  # warm file caches and table caches
+    times = [_Times() for _ in sides]
     for i in range(repeat):
-        _trace_time(first.baseline, first, base)
-        for k in range(len(rows)):
-            j = (k + i) % len(rows)
-            _trace_time(rows[j].candidate, rows[j], cand[j])
+        _round(sides, first, i, times)
         if log:
-            log(f"  {first.group} [{i + 1}/{repeat}] baseline {base[-1]:.3f} s, " +
-                ", ".join(f"{c[-1]:.3f}" for c in cand))
-    return [Result(r, list(base), list(c), list(base.cpu), list(c.cpu)) for r, c in zip(rows, cand)]
+            log(f"  {first.group or first.name} [{i + 1}/{repeat}] baseline {times[0][-1]:.3f} s, " +
+                ", ".join(f"{c[-1]:.3f}" for c in times[1:]))
+    base = times[0]
+    return [Result(r, list(base), list(c), list(base.cpu), list(c.cpu)) for r, c in zip(rows, times[1:])]
 
 
 def measure_all(rows: Sequence[Row], repeat: int = 5,
