@@ -30,9 +30,10 @@ every side rendering a band back to back before the next band (``Row.bands``): a
 time for a side is the sum over its bands, so the ratio is still the whole image's, but the
 sides are compared within a fraction of a second of each other instead of across a round of
 whole renders, and this machine's drifts (seconds long) fall on both alike. On the grid
-(2026-12-02, one thread, 12 rounds) this took the spread of the per-round ratios of the same
-binary against itself from about +-25 % (whole images) to +-7 %, and the 95 % interval of
-its median to 0.95..1.04. Each band adds POV's fixed per-render trace cost (about 1 ms, ~1 %
+(2026-12-02, 11 rounds of 12 bands) the per-round ratios of stock against itself spread
+0.86..1.14 (one thread) and 0.92..1.06 (two), the 95 % intervals of their medians
+0.94..1.08 and 0.96..1.03; whole-image rounds on the same machine that day spread the
+fork's phong (1.003 x the instructions) over 0.77..1.38. Each band adds POV's fixed per-render trace cost (about 1 ms, ~1 %
 of the grid's trace over 12 bands), which pulls a ratio R toward 1 by about (R - 1) / 100:
 below the third decimal for the goals here. The ``stock phong / stock phong`` row is that
 control, measured in the same rounds.
