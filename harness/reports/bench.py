@@ -31,21 +31,21 @@ time for a side is the sum over its bands, so the ratio is still the whole image
 sides are compared within a fraction of a second of each other instead of across a round of
 whole renders, and this machine's drifts (seconds long) fall on both alike. On the grid
 (2026-12-02, 11 rounds of 12 bands) the per-round ratios of stock against itself spread
-0.86..1.14 (one thread) and 0.92..1.06 (two), the 95 % intervals of their medians
-0.94..1.08 and 0.96..1.03; whole-image rounds on the same machine that day spread the
-fork's phong (1.003 x the instructions) over 0.77..1.38. Each band adds POV's fixed per-render trace cost (about 1 ms, ~1 %
-of the grid's trace over 12 bands), which pulls a ratio R toward 1 by about (R - 1) / 100:
-below the third decimal for the goals here. The ``stock phong / stock phong`` row is that
-control, measured in the same rounds.
+0.86..1.14 (one thread) and 0.92..1.06 (two), the 95 % intervals of their medians 0.94..1.08
+and 0.96..1.03; whole-image rounds on the same machine that day spread the fork's phong
+(1.003 x the instructions) over 0.77..1.38. Each band adds POV's fixed per-render trace cost
+(about 1 ms, ~1 % of the grid's trace over 12 bands), which pulls a ratio R toward 1 by
+about (R - 1) / 100: below the third decimal for the goals here. The ``stock phong / stock
+phong`` rows measure the method's own noise in the same rounds.
 
-A row with a ``goal`` also prints the interval that holds its true median wall ratio with 95 %
-probability (order statistics: distribution-free, as the rounds' ratios are skewed by the
-machine's bursts) and a verdict read from it: ``met`` when all of the interval is at or under
-the goal, ``missed`` when all of it is above, ``not shown`` when it holds the goal. On a
-machine whose rounds spread by +-10..30 % (shading/MODELS.md) a goal a few per cent from the
-ratio stays ``not shown`` at any practical ``--repeat``: the instruction ratio is then the
-evidence the table can give, and the verdict says that it is not the goal's own measure. ``--instructions all`` counts every selected
-row, ``none`` none.
+A row with a ``goal`` also prints the interval that holds its true median wall ratio with
+95 % probability (order statistics: distribution-free, as the rounds' ratios are skewed by the
+machine's bursts) and a verdict read from it: ``met`` when all of the interval is at or
+under the goal, ``missed`` when all of it is above, ``not shown`` when it holds the goal. On
+a machine whose rounds spread by +-10..30 % (whole images here, shading/MODELS.md) a goal a
+few per cent from the ratio stays ``not shown`` at any practical ``--repeat``: the
+instruction ratio is then the evidence the table can give, and the verdict says that it is
+not the goal's own measure. ``--instructions all`` counts every selected row, ``none`` none.
 
     python -m harness.reports.bench                 # every row
     python -m harness.reports.bench -k unmodified   # rows whose name contains the text
