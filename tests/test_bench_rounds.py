@@ -38,11 +38,11 @@ def test_a_round_renders_each_band_by_every_side_back_to_back(monkeypatch):
         rows = band[1] - band[0] + 1
         return cost[k] * rows, 2 * cost[k] * rows
 
-    monkeypatch.setattr(bench, "_trace", trace)
+    monkeypatch.setattr(bench, "trace_render", trace)
     sides = fake_sides(3)
     r = bench.Row("r", sides[0], sides[1], width=8, height=12, bands=4)
-    times = [bench._Times() for _ in sides]
-    bench._round(sides, r, 1, times)
+    times = [bench.RoundTimes() for _ in sides]
+    bench.measure_round(sides, r, 1, times)
     bands = bench.band_rows(12, 4)
     assert len(calls) == 12
     for k, band in enumerate(bands):
@@ -62,8 +62,8 @@ def test_group_ratios_divide_by_the_same_rounds_baseline(monkeypatch):
             t.append(w)
             t.cpu.append(w)
 
-    monkeypatch.setattr(bench, "_trace", lambda side, r, band=None: (1.0, 1.0))  # the warm-up
-    monkeypatch.setattr(bench, "_round", fake_round)
+    monkeypatch.setattr(bench, "trace_render", lambda side, r, band=None: (1.0, 1.0))  # the warm-up
+    monkeypatch.setattr(bench, "measure_round", fake_round)
     sides = fake_sides(3)
     rows = [bench.Row("a", sides[0], sides[1], group="g"), bench.Row("b", sides[0], sides[2], group="g")]
     a, b = bench.measure_group(rows, repeat=3)

@@ -306,7 +306,7 @@ def goal_verdict(low: float, high: float, goal: float) -> str:
     return "not shown"
 
 
-class _Times(list):
+class RoundTimes(list):
     """Trace wall seconds, with the CPU-seconds of the same renders alongside."""
 
     def __init__(self) -> None:
@@ -324,7 +324,7 @@ def band_rows(height: int, bands: int) -> list[tuple[int, int]]:
     return [(edges[k] + 1, edges[k + 1]) for k in range(bands)]
 
 
-def _trace(side: Side, r: Row, band: Optional[tuple[int, int]] = None) -> tuple[float, float]:
+def trace_render(side: Side, r: Row, band: Optional[tuple[int, int]] = None) -> tuple[float, float]:
     """(trace wall seconds, trace CPU-seconds) of one render, of the rows ``band`` only if given."""
     extra = [f"+SR{band[0]}", f"+ER{band[1]}"] if band else []
     res = runner.render(side.scene, side.binary, width=r.width, height=r.height, threads=r.threads,
@@ -334,7 +334,7 @@ def _trace(side: Side, r: Row, band: Optional[tuple[int, int]] = None) -> tuple[
     return res.trace_seconds, float(res.stats.get("trace_cpu_time", res.trace_seconds))
 
 
-def _round(sides: Sequence[Side], r: Row, i: int, into: Sequence[_Times]) -> None:
+def measure_round(sides: Sequence[Side], r: Row, i: int, into: Sequence[RoundTimes]) -> None:
     """Round ``i``: every side renders the whole image once, as ``r.bands`` bands; each band
     is rendered by every side back to back, in an order that rotates with the band and the
     round. A side's time for the round (appended to its ``into``) is the sum over the bands."""
@@ -344,7 +344,7 @@ def _round(sides: Sequence[Side], r: Row, i: int, into: Sequence[_Times]) -> Non
     for k, band in enumerate(bands):
         for m in range(len(sides)):
             j = (m + i + k) % len(sides)
-            w, c = _trace(sides[j], r, band)
+            w, c = trace_render(sides[j], r, band)
             wall[j] += w
             cpu[j] += c
     for t, w, c in zip(into, wall, cpu):
@@ -414,19 +414,19 @@ def measure_group(rows: Sequence[Row], repeat: int = 5,
                   log: Optional[Callable[[str], None]] = None) -> list[Result]:
     """Rows sharing one baseline, in ``repeat`` interleaved rounds after a warm-up round.
 
-    Each round renders the baseline and every candidate once (``_round``: the order rotates
-    from round to round, and from band to band where the rows ask for bands); a row's ratios
-    divide its candidate's time by the same round's baseline.
+    Each round renders the baseline and every candidate once (``measure_round``: the order
+    rotates from round to round, and from band to band where the rows ask for bands); a row's
+    ratios divide its candidate's time by the same round's baseline.
     """
     first = rows[0]
     assert all(r.baseline == first.baseline and (r.width, r.height, r.threads, r.bands) ==
                (first.width, first.height, first.threads, first.bands) for r in rows), "a group shares its baseline"
     sides = [first.baseline] + [r.candidate for r in rows]
     for side in sides:
-        _trace(side, first)  # warm file caches and table caches
-    times = [_Times() for _ in sides]
+        trace_render(side, first)  # warm file caches and table caches
+    times = [RoundTimes() for _ in sides]
     for i in range(repeat):
-        _round(sides, first, i, times)
+        measure_round(sides, first, i, times)
         if log:
             log(f"  {first.group or first.name} [{i + 1}/{repeat}] baseline {times[0][-1]:.3f} s, " +
                 ", ".join(f"{c[-1]:.3f}" for c in times[1:]))
