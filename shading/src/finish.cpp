@@ -109,7 +109,7 @@ void finish_model_release(int handle) {
     }
 }
 
-const FinishModel* finish_model_get(int handle) {
+const FinishModel* detail::finish_model_lookup(int handle) {
     Slot* s = registry().slot(handle);
     return s ? s->model.load(std::memory_order_acquire) : nullptr;
 }

@@ -180,11 +180,18 @@ SharedTableStats shared_table_stats();
 
 // Counted registry, process-wide. register returns a handle > 0 holding one reference.
 // addref/release accept 0 (no model) as a no-op, so FINISH copies need no special case.
-// get() is lock-free and valid while a reference is held (rendering holds the scene's).
+// get() is lock-free and valid while a reference is held (rendering holds the scene's); for
+// handle 0 (a stock finish) it answers null inline, so the renderer's per-hit hooks cost a
+// stock finish one test, no call.
 int finish_model_register(std::shared_ptr<const FinishModel> model);
 void finish_model_addref(int handle);
 void finish_model_release(int handle);
-const FinishModel* finish_model_get(int handle);
+namespace detail {
+const FinishModel* finish_model_lookup(int handle);  // finish_model_get for handle != 0
+}
+inline const FinishModel* finish_model_get(int handle) {
+    return handle == 0 ? nullptr : detail::finish_model_lookup(handle);
+}
 std::size_t finish_model_live_count();
 // The largest `samples` (reflection_samples) among the live finish models, 0 if none: the
 // parser's estimate of what glossy rays will cost with area lights.
