@@ -37,9 +37,10 @@ UPSTREAM_FILES := $(CACHE)/povray_3.7.0.10.orig.tar.gz $(CACHE)/povray_3.7.0.10-
 # Debian packages the project needs besides POV-Ray's own build dependencies
 # (those come from `apt-get build-dep povray`). `povray` is the stock reference; `time`
 # (GNU time -v) checks the harness's memory measurement; groff-base renders and checks
-# the man pages (tests/test_man_pages.py).
+# the man pages (tests/test_man_pages.py); strace shows that images are written whole
+# (tests/test_write_failures.py).
 APT_PACKAGES := build-essential dpkg-dev devscripts quilt cmake ninja-build libgtest-dev \
-                python3 python3-venv povray povray-includes time groff-base
+                python3 python3-venv povray povray-includes time groff-base strace
 
 # POV-Ray's configure: --disable-optimiz stops it adding fast-math and -march=native flags.
 # The flags are Debian's for this package (debian/rules: `dpkg-buildflags` with
@@ -63,7 +64,7 @@ QUILT_ENV := QUILT_PATCHES=$(TOP)/patches QUILT_PC=.pc-brdf QUILT_NO_DIFF_TIMEST
 QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
 PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
 
-.PHONY: all help deps fetch shading fork brdf-data venv demo test test-all test-unit test-py bench dg-compare \
+.PHONY: all help deps fetch shading fork brdf-data venv demo test test-security test-all test-unit test-py bench dg-compare \
         check-patches refresh-patches clean distclean \
         fuzz sanitize sanitize-unit sanitize-tsan sanitize-fork
 
@@ -195,6 +196,14 @@ demo: all brdf-data ## Render scenes/demo.pov and print where the image is
 test: all venv brdf-data ## Build if needed, run the unit (ctest) and fast Python (pytest) suites
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q -m "not slow"
+
+# The security and data-safety checks too slow for `make test` (.ci/run runs both): every
+# entry point x path form against the fork and Debian's stock binary (the matrix is printed),
+# then the slow security tests.
+SECURITY_SLOW_TESTS := tests/test_write_failures.py
+test-security: all venv brdf-data ## The slow security checks: the whole path matrix (fork beside stock) and the slow fault tests
+	$(PY) -m harness.reports.path_matrix --jobs $(JOBS)
+	$(PY) -m pytest -q -m slow $(SECURITY_SLOW_TESTS)
 
 test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)

@@ -73,7 +73,10 @@ def test_layout(prefix):
                                env={"MANWIDTH": "80", "PATH": "/usr/bin:/bin", "MAN_DISABLE_SECCOMP": "1"})
         assert shown.returncode == 0 and shown.stdout.startswith(page.upper()), shown.stderr
     assert not (prefix / "bin" / "povray").exists()  # stock's name stays stock's
-    assert f"Library_Path={share}/brdf_data" in (etc / "povray.ini").read_text()
+    assert f"Library_Path={share}/include" in (etc / "povray.ini").read_text()
+    # the fork's tables: searched after the user's folders (patch 0027)
+    conf = (etc / "povray.conf").read_text()
+    assert f"[Library Paths]\nLibrary_Path={share}/brdf_data" in conf
     assert f"read* = {share}/include" in (etc / "povray.conf").read_text()
     strings = subprocess.run(["strings", str(prefix / "bin" / "povray-brdf")], capture_output=True, text=True).stdout
     assert f"{etc}/povray.conf" in strings.splitlines()
@@ -88,7 +91,7 @@ def test_layout(prefix):
 
 def test_installed_binary_renders_with_installed_conf(prefix, fork, tmp_path):
     share = prefix / "share" / "povray-brdf"
-    # a table that exists only in the installed tree: found only through the installed povray.ini
+    # a table that exists only in the installed tree: found only through the installed povray.conf
     shutil.copy(READY / "lambert-white.brdf", share / "brdf_data" / "only-installed.brdf")
     img, log = render(prefix / "bin" / "povray-brdf", tmp_path / "installed")
     assert "BRDF tables:" in log

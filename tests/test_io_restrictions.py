@@ -276,3 +276,52 @@ def test_scene_write_inside_the_permitted_paths_is_allowed(fork, site, where):
         assert target.read_text() == "written by the scene\n"
     finally:
         target.unlink(missing_ok=True)
+
+
+# ---------------------------------------------------------------- pipes, devices (0025)
+
+@pytest.mark.parametrize("how", ["scene", "include"])
+def test_a_fifo_is_refused_at_once_not_read(fork, site, how):
+    """Upstream (and Debian's stock) hang on a FIFO given as the scene or an include file:
+    opening it waits for a writer. The fork refuses it before opening it."""
+    fifo = site / "proj" / ("f.pov" if how == "scene" else "f.inc")
+    os.mkfifo(fifo)
+    if how == "include":
+        (site / "proj" / "s.pov").write_text(PLAIN.format(includes='#include "f.inc"', colour="1", finish=""))
+    p = run_fork(fork, site, fifo.name if how == "scene" else "s.pov", site / "proj" / "o.exr")  # timeout 120 s
+    assert p.returncode != 0
+    assert f"reading from '{fifo.name}' refused: it is a FIFO (named pipe), not a regular file" in p.stderr, \
+        p.stderr[-1500:]
+
+
+def test_a_device_is_not_read_as_an_include_file(fork, site):
+    (site / "proj" / "z.pov").write_text(PLAIN.format(includes='#include "/dev/zero"', colour="1", finish=""))
+    p = run_fork(fork, site, "z.pov", site / "proj" / "o.exr")
+    assert p.returncode != 0
+    assert "reading from '/dev/zero' refused: it is a character device, not a regular file" in p.stderr, \
+        p.stderr[-1500:]
+
+
+# ---------------------------------------------------------------- library path order (0027)
+
+def test_the_users_library_folders_come_before_the_forks_own(fork, site):
+    """A user's +L folder with a table named like one of the fork's ready tables (gold.brdf)
+    is the one the scene gets; POV's standard include folder still comes first (stock's order)."""
+    mine = site / "home" / "mine"
+    mine.mkdir()
+    shutil.copyfile(tables.tabulated("lambert rho=0.5", step=15.0), mine / "gold.brdf")
+    (mine / "colors.inc").write_text("#declare Red = <0, 0, 1>;\n")  # must not shadow POV's own
+    def scene(t):
+        return PLAIN.format(includes='#include "colors.inc"', colour="Red", finish=f'finish {{ brdf_table {{ "{t}" }} }}')
+    out = site / "proj" / "o.exr"
+    (site / "proj" / "by_name.pov").write_text(scene("gold.brdf"))
+    (site / "proj" / "by_path.pov").write_text(scene(mine / "gold.brdf"))
+    by_name = rendered(run_fork(fork, site, "by_name.pov", out, f"+L{mine}"), out)
+    out.unlink()
+    by_path = rendered(run_fork(fork, site, "by_path.pov", out, f"+L{mine}"), out)
+    out.unlink()
+    fork_gold = rendered(run_fork(fork, site, "by_name.pov", out), out)
+    assert np.array_equal(by_name, by_path)          # the user's gold.brdf
+    assert not np.allclose(by_name, fork_gold, atol=1e-3)  # not the fork's
+    # the table's grey plus ambient 0.1 x pigment: POV's Red <1, 0, 0>, not the user's <0, 0, 1>
+    assert by_name[8, 8, 0] - by_name[8, 8, 2] > 0.05, by_name[8, 8]
