@@ -325,8 +325,9 @@ def _file_hash(path: Path) -> str:
 
 
 def _library_dirs(study: Study) -> list[Path]:
-    """Where the fork finds tables and include files a scene names without staging them."""
-    dirs = [study.path.parent.resolve(), READY_TABLES, REPO_ROOT / "brdf_data", REPO_ROOT / "scenes" / "include"]
+    """Where the fork finds tables and include files a scene names without staging them (its
+    library path; a table beside the study is staged, and hashed, instead)."""
+    dirs = [READY_TABLES, REPO_ROOT / "brdf_data", REPO_ROOT / "scenes" / "include"]
     return [d for d in dirs if d.is_dir()] + include_dirs()
 
 
@@ -647,16 +648,16 @@ def run(study: Study, out_dir: Path, *, jobs: Optional[int] = None, scheduler: O
         raise Interrupted(signum, store.done(keys), len(keys), store.folder) from None
     except files.WriteError as e:
         store.settle_jobs(study, dict(zip(keys, rjobs)), common)
-        raise StudyError(f"{e}; {store.done(keys)} of {len(keys)} renders done are kept in {store.folder} "
-                         "and will not be redone") from None
+        raise StudyError(f"{e}; {store.done(keys)} of {len(keys)} renders are done and kept in {store.folder}: "
+                         "the next run renders only the rest") from None
     wall = time.perf_counter() - t0
     try:
         return _write_outputs(study, cells, results, out_dir, store, keys, wall, reused,
                               f"dask {scheduler}" if scheduler else f"local, {jobs or os.cpu_count()} jobs")
     except files.WriteError as e:
         _invalidate(out_dir)  # no partial set of pages left looking like a finished study
-        raise StudyError(f"{e}; the {store.done(keys)} renders done are kept in {store.folder}: run again "
-                         "once it can be written") from None
+        raise StudyError(f"{e}; {store.done(keys)} of {len(keys)} renders are done and kept in {store.folder}: "
+                         "the next run renders only the rest") from None
     except (KeyboardInterrupt, _Signalled) as e:
         _invalidate(out_dir)
         raise Interrupted(e.signum if isinstance(e, _Signalled) else signal.SIGINT, store.done(keys), len(keys),
