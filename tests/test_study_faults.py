@@ -46,6 +46,12 @@ name = "matte"
 pov = "pigment { rgb <0.7, 0.5, 0.3> } finish { diffuse 0.8 }"
 """
 CELLS = 4
+#: The same with a soft light (576 shadow rays a pixel): about 1 s a render, long enough to
+#: catch a renderer running and to see one that outlived the harness.
+SOFT = TINY.replace('lights = ["key"]', 'lights = ["soft"]') + """
+[light.soft]
+pov = "light_source { <-4, 6, -5> rgb 1 area_light x * 2, z * 2, 24, 24 circular orient }"
+"""
 
 
 def _fork_path() -> Path:
@@ -104,6 +110,19 @@ def _alive(pid: int) -> bool:
 
 def _renderers_alive(log: Path) -> list[int]:
     return [int(p[2]) for p in _log(log) if p[0] == "start" and _alive(int(p[2]))]
+
+
+def _wait_for_a_new_renderer(log: Path, out: Path, stored: int) -> list[list[str]]:
+    """Wait until ``stored`` renders are stored and then a renderer starts; its log lines."""
+    deadline = time.monotonic() + 120
+    while len(list((out / "renders").glob("*.npz"))) < stored and time.monotonic() < deadline:
+        time.sleep(0.005)
+    before = len(_log(log))
+    while len(_log(log)) == before and time.monotonic() < deadline:
+        time.sleep(0.002)
+    started = [p for p in _log(log)[before:] if p[0] == "start"]
+    assert started, "no renderer started"
+    return started
 
 
 def _images(out: Path) -> dict[str, np.ndarray]:
@@ -173,20 +192,20 @@ def _check_resumed(r: dict) -> None:
 
 
 def test_killed_once_resumes_without_redoing_a_render(counting_fork, tiny, tmp_path):
-    """SIGKILL once while the renders run (after the first one is stored), then resume."""
+    """SIGKILL once, just after a renderer started (a render is stored already); then resume."""
     wrapper, log = counting_fork
+    tiny.write_text(SOFT)
     tmp = tmp_path / "tmp"
     out = tmp_path / "out"
     proc = subprocess.Popen(_cmd(tiny, out), env=_env(wrapper, tmp), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 120
-    while not list((out / "renders").glob("*.npz")) and time.monotonic() < deadline:
-        time.sleep(0.01)
+    started = _wait_for_a_new_renderer(log, out, 1)
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=60)
     time.sleep(0.1)
     kept = len(list((out / "renders").glob("*.npz")))
-    assert 1 <= kept < CELLS + 1
-    assert _renderers_alive(log) == []  # the renderers died with the harness
+    assert 1 <= kept < CELLS
+    assert _renderers_alive(log) == []  # the renderers died with the harness (a render lasts ~1 s)
+    assert not {Path(p[1]).name for p in started} & set(_completions(log))
     assert not (out / "summary.json").exists()
     p = subprocess.run(_cmd(tiny, out), env=_env(wrapper, tmp), capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
@@ -200,7 +219,7 @@ def test_killed_once_resumes_without_redoing_a_render(counting_fork, tiny, tmp_p
     fork = Binary(_fork_path(), "fork")
     direct = runner.render_many([study.scene_text(st, m, s, l) for m in st.materials for s in st.shapes
                                  for l in st.lights], binary=fork, width=48, height=40, float_exr=True,
-                                progress=False)
+                                progress=False, max_workers=2)
     got = _images(out)
     for c, d in zip(summary["cells"], direct):
         np.testing.assert_array_equal(got[c["key"]], d.image)
@@ -208,10 +227,10 @@ def test_killed_once_resumes_without_redoing_a_render(counting_fork, tiny, tmp_p
 
 @pytest.mark.slow
 def test_killed_at_ten_random_moments_resumes_to_the_same_images(counting_fork, tiny, tmp_path):
-    """The area light makes each render long enough (about a second) for several kills to
-    land while renderers run; the others land while the study starts or writes its pages."""
+    """With renders of about a second, several kills land while renderers run; the others
+    while the study starts or writes its pages."""
     wrapper, log = counting_fork
-    tiny.write_text(TINY.replace('lights = ["key"]', 'lights = ["area"]'))
+    tiny.write_text(SOFT)
     rng = random.Random(29)
     moments = [rng.uniform(0.05, 0.95) for _ in range(10)]  # fractions of the shortest run's time
     r = _kill_and_resume(tiny, wrapper, log, tmp_path, moments)
@@ -227,17 +246,21 @@ def test_killed_at_ten_random_moments_resumes_to_the_same_images(counting_fork, 
 @pytest.mark.parametrize("sig, code, name", [(signal.SIGINT, 130, "Ctrl-C"), (signal.SIGTERM, 143, "SIGTERM")])
 def test_signal_stops_renderers_and_says_what_was_kept(counting_fork, tiny, tmp_path, sig, code, name):
     wrapper, log = counting_fork
+    tiny.write_text(SOFT)
     tmp = tmp_path / "tmp"
     out = tmp_path / "out"
     proc = subprocess.Popen(_cmd(tiny, out), env=_env(wrapper, tmp), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
-    deadline = time.monotonic() + 120
-    while not _renderers_alive(log) and time.monotonic() < deadline:
-        time.sleep(0.005)
+    started = _wait_for_a_new_renderer(log, out, 0)
     running = _renderers_alive(log)
     assert running
+    t0 = time.monotonic()
     proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=60)
+    stop_seconds = time.monotonic() - t0
+    print(f"{name}: stopped in {stop_seconds:.2f} s; {stderr.strip()}")
+    # the renderer just started (it needs ~1 s) was killed, not waited for
+    assert not {Path(p[1]).name for p in started} & set(_completions(log))
     assert proc.returncode == code, stderr
     assert "Traceback" not in stderr
     lines = [ln for ln in stderr.splitlines() if ln.strip()]
