@@ -594,10 +594,16 @@ def render_many(jobs: Iterable[Union[RenderJob, Any]], *, max_workers: Optional[
         futures = []
         try:
             futures = [pool.submit(run, i, j) for i, j in enumerate(jl)]
-            done, _ = wait_futures(futures, return_when=FIRST_EXCEPTION)
-            for f in done:
-                if f.exception() is not None:
-                    raise f.exception()  # type: ignore[misc]
+            while True:
+                # Short waits: a signal the kernel hands to another thread (one waiting for its
+                # renderer) runs its Python handler (Ctrl-C's KeyboardInterrupt) only when this
+                # thread runs Python code again, not while it blocks in one long wait.
+                done, pending = wait_futures(futures, timeout=0.05, return_when=FIRST_EXCEPTION)
+                for f in done:
+                    if f.exception() is not None:
+                        raise f.exception()  # type: ignore[misc]
+                if not pending:
+                    break
             results = [f.result() for f in futures]
         except BaseException:
             for f in futures:

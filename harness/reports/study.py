@@ -525,7 +525,7 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
             with progress_bar(len(jobs), "study (dask)", enabled=progress) as prog:
                 while pending:
                     try:
-                        done, _ = dask_wait(list(pending), timeout=1.0, return_when="FIRST_COMPLETED")
+                        done, _ = dask_wait(list(pending), timeout=0.5, return_when="FIRST_COMPLETED")
                     except TimeoutError:
                         done = set()
                     if not done:
