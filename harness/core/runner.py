@@ -311,9 +311,10 @@ def running_renders(tag: str = "") -> list[int]:
         return [p.pid for p, t in _LIVE.items() if not tag or t == tag]
 
 
-def sweep_stale_jobs(folder: Optional[Union[str, os.PathLike]] = None) -> int:
-    """Remove temporary job folders (``povjob-<pid>-*``) left in the temp folder by harness
-    processes that were killed (their pid is gone) and owned by this user. Returns how many."""
+def sweep_stale_jobs(folder: Optional[Union[str, os.PathLike]] = None, prefix: str = JOB_PREFIX) -> int:
+    """Remove temporary job folders (``povjob-<pid>-*``; another ``prefix``: ``<prefix><pid>-*``)
+    left in the temp folder by harness processes that were killed (their pid is gone) and
+    owned by this user. Returns how many."""
     base = Path(folder or tempfile.gettempdir())
     n = 0
     try:
@@ -321,7 +322,7 @@ def sweep_stale_jobs(folder: Optional[Union[str, os.PathLike]] = None) -> int:
     except OSError:
         return 0
     for ent in entries:
-        m = re.fullmatch(re.escape(JOB_PREFIX) + r"(\d+)-.+", ent.name)
+        m = re.fullmatch(re.escape(prefix) + r"(\d+)-.+", ent.name)
         if not m or int(m.group(1)) == os.getpid() or pid_alive(int(m.group(1))):
             continue
         try:

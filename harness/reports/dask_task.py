@@ -26,6 +26,7 @@ def render_task(scene: str, options: dict[str, Any], binary_path: str, tag: str 
     from harness.core import runner
     from harness.core.paths import Binary
 
+    runner.sweep_stale_jobs()  # job folders of a worker that was killed on this machine
     path = os.environ.get("POVRAY_BRDF") or binary_path
     res = runner.render(scene, Binary(Path(path), "fork"), tag=tag, **options)
     res.stats["worker_pid"] = float(os.getpid())

@@ -462,6 +462,10 @@ def _invalidate(out_dir: Path) -> None:
 
 # ---------------------------------------------------------------- rendering: local or Dask
 
+#: The client's temporary folder (the harness zip): ``study-dask-<pid>-*``.
+DASK_TMP_PREFIX = "study-dask-"
+
+
 def _harness_zip(directory: Path) -> Path:
     """The ``harness`` package (its .py files) as a zip, for ``Client.upload_file``."""
     import zipfile
@@ -505,7 +509,8 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
 
     fork = fork_binary()
     tag = f"study-{os.getpid()}-{time.monotonic_ns()}"
-    with client, tempfile.TemporaryDirectory(prefix="study-dask-") as tmp:
+    runner.sweep_stale_jobs(prefix=DASK_TMP_PREFIX)
+    with client, tempfile.TemporaryDirectory(prefix=f"{DASK_TMP_PREFIX}{os.getpid()}-") as tmp:
         # The scheduler and the workers may run elsewhere (another venv, no checkout): send
         # them this harness (a zip placed first on their sys.path); they need the fork binary
         # and the staged files at the same paths (or POVRAY_BRDF on the workers).
