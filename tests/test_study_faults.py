@@ -423,3 +423,73 @@ def test_dask_worker_killed_mid_render_is_retried_and_leaves_no_renderer(countin
     assert list(tmp.glob("povjob-*")) == []  # the killed worker's job folder was swept by the retry
     assert starts == 5 and sum(_completions(log).values()) == 4  # the killed worker's render, once more
     assert victim not in {c["worker_pid"] for c in s["cells"]}
+
+
+# ---------------------------------------------------------------- what counts as done
+
+def _result(image: np.ndarray) -> runner.RenderResult:
+    return runner.RenderResult(image=image, exr_dtype=np.dtype(np.float32), trace_seconds=0.5, parse_seconds=0.1,
+                               peak_memory_bytes=12345678, stats={"trace_time": 0.5}, warnings=[], command=["x"],
+                               stderr="POV-Ray finished", wall_seconds=0.7, binary=Binary(Path("/bin/true"), "fork"),
+                               pov_text="// scene")
+
+
+def test_a_partial_or_foreign_kept_render_is_not_taken_as_done(tmp_path):
+    store = study.RenderStore(tmp_path / "renders")
+    img = np.random.default_rng(1).random((40, 48, 3), dtype=np.float32)
+    store.save("k1", _result(img))
+    back = store.load("k1")
+    np.testing.assert_array_equal(back.image, img)
+    assert back.trace_seconds == 0.5 and back.peak_memory_bytes == 12345678
+    assert list(store.folder.iterdir()) == [store.entry("k1")]  # no temporary file left
+    whole = store.entry("k1").read_bytes()
+    for cut in (0, 100, len(whole) // 2, len(whole) - 1):  # a file cut short anywhere
+        store.entry("k1").write_bytes(whole[:cut])
+        assert store.load("k1") is None and not store.entry("k1").exists(), cut
+    # another key's entry under this name (a copied folder) and flipped pixels
+    store.save("k2", _result(img))
+    store.entry("k2").rename(store.entry("k1"))
+    assert store.load("k1") is None
+    store.save("k3", _result(img))
+    data = bytearray(store.entry("k3").read_bytes())
+    i = data.index(img.tobytes()[:64])  # the pixels are stored uncompressed: flip a byte of one
+    data[i + 8] ^= 0xFF
+    store.entry("k3").write_bytes(bytes(data))
+    assert store.load("k3") is None
+
+
+def test_a_job_folder_counts_only_with_its_whole_image_and_povs_last_line(tmp_path):
+    from harness.core import exr
+
+    job = tmp_path / "k.job"
+    job.mkdir()
+    img = np.full((40, 48, 3), 0.25, np.float32)
+    exr.write_exr(job / runner.OUTPUT_NAME, img)
+    (job / runner.SCENE_NAME).write_text("// scene")
+    (job / runner.STDOUT_NAME).write_text("")
+    (job / runner.STDERR_NAME).write_text("Trace Time: 0 hours 0 minutes 1 seconds (1.250 seconds)\nPOV-Ray finished\n")
+    fork = Binary(Path("/bin/true"), "fork")
+    r = runner.result_from_job(job, fork, 48, 40, True)
+    assert r is not None and r.trace_seconds == 1.25 and r.peak_memory_bytes is None
+    np.testing.assert_array_equal(r.image, img)
+    (job / runner.STDERR_NAME).write_text("Trace Time: 0 hours 0 minutes 1 seconds (1.250 seconds)\n")  # killed before
+    assert runner.result_from_job(job, fork, 48, 40, True) is None
+    (job / runner.STDERR_NAME).write_text("POV-Ray finished\n")
+    whole = (job / runner.OUTPUT_NAME).read_bytes()
+    (job / runner.OUTPUT_NAME).write_bytes(whole[: len(whole) * 2 // 3])  # an image cut short
+    assert runner.result_from_job(job, fork, 48, 40, True) is None
+    (job / runner.OUTPUT_NAME).unlink()
+    assert runner.result_from_job(job, fork, 48, 40, True) is None
+
+
+def test_stale_job_folders_of_dead_processes_are_swept(tmp_path):
+    dead = subprocess.run(["sh", "-c", "echo $$"], capture_output=True, text=True).stdout.strip()
+    (tmp_path / f"povjob-{dead}-abc").mkdir()
+    (tmp_path / f"povjob-{os.getpid()}-mine").mkdir()
+    (tmp_path / "povjob-xyz").mkdir()  # an older name without a pid: not ours to judge
+    (tmp_path / f".sheet.png.{dead}.a1b2c3.tmp").write_text("half")
+    assert runner.sweep_stale_jobs(tmp_path) == 1
+    from harness.core import files
+
+    assert files.sweep_temps(tmp_path) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"povjob-{os.getpid()}-mine", "povjob-xyz"]
