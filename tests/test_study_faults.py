@@ -455,7 +455,14 @@ def test_a_partial_or_foreign_kept_render_is_not_taken_as_done(tmp_path):
     i = data.index(img.tobytes()[:64])  # the pixels are stored uncompressed: flip a byte of one
     data[i + 8] ^= 0xFF
     store.entry("k3").write_bytes(bytes(data))
-    assert store.load("k3") is None
+    assert store.load("k3") is None  # (the zip's CRC-32 catches this one first)
+    # other pixels in a well-formed file under the right key: the sha256 of the pixels catches it
+    store.save("k4", _result(img))
+    with np.load(store.entry("k4")) as z:
+        meta = np.array(z["meta"])
+    with open(store.entry("k4"), "wb") as f:
+        np.savez(f, image=img * 0.5, meta=meta)
+    assert store.load("k4") is None
 
 
 def test_a_job_folder_counts_only_with_its_whole_image_and_povs_last_line(tmp_path):
@@ -493,3 +500,23 @@ def test_stale_job_folders_of_dead_processes_are_swept(tmp_path):
 
     assert files.sweep_temps(tmp_path) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"povjob-{os.getpid()}-mine", "povjob-xyz"]
+
+
+def test_the_key_changes_with_what_made_the_render(tmp_path):
+    binary = tmp_path / "povray-brdf"
+    binary.write_bytes(b"one")
+    table = tmp_path / "t.brdf"
+    table.write_bytes(b"table one")
+    b = Binary(binary, "fork")
+    opts = {"width": 48, "height": 40, "float_exr": True, "threads": 1, "files": {"t.brdf": str(table)}}
+    k = study.render_key("scene", b, opts)
+    assert study.render_key("scene", b, dict(opts, workdir="/x", tag="t")) == k  # where it runs: not part of it
+    assert study.render_key("scene ", b, opts) != k
+    assert study.render_key("scene", b, dict(opts, width=49)) != k
+    assert study.render_key("scene", b, opts, [["lib/gold.brdf", 1, 2]]) != k
+    table.write_bytes(b"table two")  # the staged table's contents, not its name
+    assert study.render_key("scene", b, opts) != k
+    table.write_bytes(b"table one")
+    assert study.render_key("scene", b, opts) == k
+    os.utime(binary, ns=(1, 1))  # a rebuilt binary (new mtime)
+    assert study.render_key("scene", b, opts) != k
