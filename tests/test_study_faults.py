@@ -67,10 +67,13 @@ def counting_fork(fork, tmp_path):
         pytest.skip("setpriv (util-linux) is missing")
     log = tmp_path / "povray.log"
     wrapper = tmp_path / "povray-brdf-counting"
+    # The renderer logs its own start once its parent-death signal is set and its parent is
+    # still this script (else the script died in between and nobody would kill it: it exits).
     wrapper.write_text(f"""#!/bin/sh
-setpriv --pdeathsig KILL -- {fork.path.resolve()} "$@" &
+setpriv --pdeathsig KILL -- sh -c '[ "$PPID" = "$0" ] || exit 111
+echo "start $PWD $$ $0 $(date +%s.%N)" >> {log}
+exec {fork.path.resolve()} "$@"' "$$" "$@" &
 child=$!
-echo "start $PWD $child $$" >> {log}
 wait $child
 rc=$?
 [ $rc -eq 0 ] && echo "done $PWD" >> {log}
@@ -113,16 +116,16 @@ def _renderers_alive(log: Path) -> list[int]:
 
 
 def _wait_for_a_new_renderer(log: Path, out: Path, stored: int) -> list[list[str]]:
-    """Wait until ``stored`` renders are stored and then a renderer starts; its log lines."""
+    """Wait until ``stored`` renders are stored and a renderer started less than 0.3 s ago
+    (a render lasts ~1 s) runs; the log lines of those."""
     deadline = time.monotonic() + 120
-    while len(list((out / "renders").glob("*.npz"))) < stored and time.monotonic() < deadline:
-        time.sleep(0.005)
-    before = len(_log(log))
-    while len(_log(log)) == before and time.monotonic() < deadline:
-        time.sleep(0.002)
-    started = [p for p in _log(log)[before:] if p[0] == "start"]
-    assert started, "no renderer started"
-    return started
+    while time.monotonic() < deadline:
+        if len(list((out / "renders").glob("*.npz"))) >= stored:
+            fresh = [p for p in _log(log) if p[0] == "start" and time.time() - float(p[4]) < 0.3 and _alive(int(p[2]))]
+            if fresh:
+                return fresh
+        time.sleep(0.003)
+    raise AssertionError("no renderer started")
 
 
 def _images(out: Path) -> dict[str, np.ndarray]:
