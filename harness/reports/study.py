@@ -51,7 +51,9 @@ earlier run are removed before rendering and written again (whole) only at the e
 none of them. Temporary folders of killed runs (``povjob-<pid>-*``, ``.*.<pid>.*.tmp``) are
 removed by the next run. With Dask, a worker that dies takes its renderers with it and its
 renders are run again on another worker; with no worker left for ``--worker-wait`` seconds the
-study stops and names the renders not done.
+study stops and names the renders not done. (With Dask a render is kept when its result
+reaches this process: one that finished on a worker just before this process was killed is
+rendered again.)
 """
 
 from __future__ import annotations
