@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence, Union
 
+from harness.core.files import write_whole
+
 PathLike = Union[str, os.PathLike]
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".svg", ".gif")
 
@@ -225,7 +227,7 @@ def write_page(path: PathLike, title: str, sections: Sequence[Section], notes: s
         body.append(table(s.rows, s.columns, base))
         body += [figure(img, base, cap) for cap, img in s.images]
         body += list(s.body)
-    out.write_text(render_page(title, [b for b in body if b]), encoding="utf-8")
+    write_whole(out, render_page(title, [b for b in body if b]))
     return out
 
 
@@ -238,5 +240,5 @@ def write_report(path: PathLike, title: str, rows: Sequence[Mapping[str, Any]],
     out.parent.mkdir(parents=True, exist_ok=True)
     base = out.parent
     body = [notes_html(notes, None), table(rows, columns, base), *[figure(i, base, c) for c, i in images]]
-    out.write_text(render_page(title, [b for b in body if b]), encoding="utf-8")
+    write_whole(out, render_page(title, [b for b in body if b]))
     return out

@@ -44,9 +44,15 @@ def pyplot() -> Any:
 
 
 def save(fig: Any, path: Union[str, os.PathLike], **kwargs: Any) -> Path:
-    """Write ``fig`` to ``path`` (its folder created), close it, return the path."""
+    """Write ``fig`` to ``path`` whole (its folder created; :func:`harness.core.files.write_whole`:
+    a failed write leaves no partial file and names ``path``), close it, return the path. The
+    format is the file name's suffix unless ``format=`` says otherwise."""
+    from harness.core.files import write_whole
+
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(str(out), **kwargs)
-    pyplot().close(fig)
+    kwargs.setdefault("format", out.suffix.lstrip(".").lower() or "png")
+    try:
+        write_whole(out, lambda f: fig.savefig(f, **kwargs))
+    finally:
+        pyplot().close(fig)
     return out

@@ -16,6 +16,7 @@ import subprocess
 from pathlib import Path
 from typing import Sequence
 
+from harness.core.files import pid_alive
 from harness.core.paths import brdftool, cache_dir
 
 CACHE_DIR = cache_dir("brdf_cache")
@@ -29,13 +30,24 @@ def cached(args: Sequence[str], stem: str) -> Path:
     if out.is_file():
         return out
     CACHE_DIR.mkdir(parents=True, exist_ok=True)
+    _sweep(CACHE_DIR)
     tmp = out.with_suffix(f".tmp{os.getpid()}")
-    proc = subprocess.run([str(brdftool()), *args, "-o", str(tmp)], capture_output=True, text=True)
-    if proc.returncode != 0:
+    try:
+        proc = subprocess.run([str(brdftool()), *args, "-o", str(tmp)], capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"brdftool {' '.join(args)} failed: {proc.stderr.strip()}")
+        tmp.replace(out)
+    finally:  # failed, interrupted (Ctrl-C) or done: no temporary table stays behind
         tmp.unlink(missing_ok=True)
-        raise RuntimeError(f"brdftool {' '.join(args)} failed: {proc.stderr.strip()}")
-    tmp.replace(out)
     return out
+
+
+def _sweep(folder: Path) -> None:
+    """Remove the temporary tables (``*.tmpPID``) of processes that were killed while writing them."""
+    for f in folder.glob("*.tmp*"):
+        pid = f.suffix[len(".tmp"):]
+        if pid.isdigit() and int(pid) != os.getpid() and not pid_alive(int(pid)):
+            f.unlink(missing_ok=True)
 
 
 def tabulated(spec: str, step: float = 1.0, fold: bool = False, channels: int = 3) -> Path:

@@ -34,24 +34,60 @@ runs :func:`harness.core.runner.render` on a worker. The harness itself is uploa
 scheduler and workers (they need numpy and OpenEXR, not a checkout); the fork binary and the
 study's tables must be at the same paths there as here (a shared file system or the same
 checkout; ``POVRAY_BRDF`` on a worker overrides the binary path).
+
+Faults. Each finished render is stored at once, whole (temporary file, then rename), in
+``<out>/renders/<key>.npz`` (:class:`RenderStore`), the key hashing what made it: the scene
+text, the binary (path, size, mtime), the options, the staged tables' contents and the
+library folders' listing. A study that is killed (even SIGKILL) and run again takes up the
+renders it finished (a render whose ``povray`` finished just before the kill is recovered from
+its job folder ``<key>.job``, not run again) and renders only the rest; an entry that does not
+read back whole with its key and the hash of its pixels is rendered again. Every renderer
+runs in its own process group and dies with the harness (Linux parent-death signal). Ctrl-C
+or SIGTERM kills the renderers, removes their folders and prints one line: how many of the
+renders are done and where they are kept (exit 130, or 143). The output folder is checked
+writable before the first render; ``summary.json``, ``index.html`` and ``sheet.png`` of an
+earlier run are removed before rendering and written again (whole) only at the end,
+``summary.json`` last, so a run that fails (a full disk: the message names the file) leaves
+none of them. Temporary folders of killed runs (``povjob-<pid>-*``, ``.*.<pid>.*.tmp``) are
+removed by the next run. With Dask, a worker that dies takes its renderers with it and its
+renders are run again on another worker; with no worker left for ``--worker-wait`` seconds the
+study stops and names the renders not done. (With Dask a render is kept when its result
+reaches this process: one that finished on a worker just before this process was killed is
+rendered again.)
 """
 
 from __future__ import annotations
 
+import signal
+import sys
+
+if __name__ == "__main__":  # Ctrl-C while the imports below load (seconds on a busy machine): one line
+    def _early(signum: int, frame: object) -> None:
+        print(f"study: interrupted ({'Ctrl-C' if signum == signal.SIGINT else signal.Signals(signum).name}) "
+              "while starting; nothing was rendered", file=sys.stderr)
+        sys.exit(128 + signum)
+
+    signal.signal(signal.SIGINT, _early)
+    signal.signal(signal.SIGTERM, _early)
+
 import argparse
+import hashlib
 import json
 import os
 import re
-import sys
+import shutil
 import tempfile
 import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional, Sequence, Union
+from typing import Any, Callable, Optional, Sequence, Union
 
-from harness.core import exr, page, plotting, povwriter, runner, tables
-from harness.core.paths import REPO_ROOT, BinaryNotFound, fork_binary, in_checkout, out_dir, ready_tables_dir
+import numpy as np
+
+from harness.core import exr, files, page, plotting, povwriter, runner, tables
+from harness.core.paths import (REPO_ROOT, Binary, BinaryNotFound, fork_binary, in_checkout, include_dirs, out_dir,
+                                ready_tables_dir)
 from harness.core.progress import bar as progress_bar
 from harness.tools import brdfplot
 
@@ -249,7 +285,188 @@ def scene_text(study: Study, mat: Material, shape: str, light: str) -> str:
     return SCENE_TEMPLATE.format(material=mat.name, shape=shape, light=light, includes=inc,
                                  lights=study.lights[light], obj=study.shapes[shape].replace("MATERIAL", mat.pov))
 
+# ---------------------------------------------------------------- kept renders (resume)
+
+#: Bumped when what a kept render holds changes: older entries are then not used.
+STORE_VERSION = 1
+
+
+class Interrupted(Exception):
+    """The study was stopped by a signal (Ctrl-C, SIGTERM); ``done`` of ``total`` renders are
+    kept in ``where`` and the next run of the same study takes them up."""
+
+    def __init__(self, signum: int, done: int, total: int, where: Path) -> None:
+        name = "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+        super().__init__(f"interrupted ({name}): {done} of {total} renders done, kept in {where}; "
+                         "run the same command again to render the rest")
+        self.signum, self.done, self.total, self.where = signum, done, total, where
+
+
+class _Signalled(BaseException):
+    """Raised in the main thread by :func:`main`'s SIGINT/SIGTERM handler."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+_HASHES: dict[tuple[str, int, int], str] = {}
+
+
+def _file_hash(path: Path) -> str:
+    """sha256 of a file's bytes (remembered per path, size and mtime within this process)."""
+    st = path.stat()
+    k = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if k not in _HASHES:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        _HASHES[k] = h.hexdigest()
+    return _HASHES[k]
+
+
+def _library_dirs(study: Study) -> list[Path]:
+    """Where the fork finds tables and include files a scene names without staging them (its
+    library path; a table beside the study is staged, and hashed, instead)."""
+    dirs = [READY_TABLES, REPO_ROOT / "brdf_data", REPO_ROOT / "scenes" / "include"]
+    return [d for d in dirs if d.is_dir()] + include_dirs()
+
+
+def _library_fingerprint(study: Study) -> list[Any]:
+    """Name, size and mtime of every file in the library folders (tables and include files a
+    scene may name, directly or inside an include file): a change there redoes the renders."""
+    out: list[Any] = []
+    for d in _library_dirs(study):
+        for f in sorted(d.iterdir()):
+            if f.is_file():
+                st = f.stat()
+                out.append([str(f), st.st_size, st.st_mtime_ns])
+    return out
+
+
+def render_key(scene: str, binary: Binary, options: dict[str, Any], library: Sequence[Any] = ()) -> str:
+    """What makes a render: the scene text, the binary (resolved path, size, mtime), the render
+    options, the staged files' contents (sha256) and ``library`` (:func:`_library_fingerprint`),
+    hashed. A kept render is used only under the same key."""
+    b = binary.path.resolve()
+    st = b.stat()
+    opts = {k: v for k, v in options.items() if k not in ("files", "workdir", "tag", "binary")}
+    ident = {"version": STORE_VERSION, "scene": scene, "binary": [str(b), binary.flavour, st.st_size, st.st_mtime_ns],
+             "options": opts, "files": {k: _file_hash(Path(v)) for k, v in sorted(options.get("files", {}).items())},
+             "library": list(library)}
+    return hashlib.sha256(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:32]
+
+
+class RenderStore:
+    """Finished renders of a study, kept in ``folder`` (``<out>/renders``) one file each,
+    ``<key>.npz`` (the float image and the result's numbers), written whole; a render in
+    progress runs in ``<key>.job/``. An entry is used only if it reads back whole with its key
+    and the sha256 of its pixels; anything else is removed and rendered again."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+
+    def entry(self, key: str) -> Path:
+        return self.folder / f"{key}.npz"
+
+    def job_dir(self, key: str) -> Path:
+        return self.folder / f"{key}.job"
+
+    def save(self, key: str, r: runner.RenderResult) -> Path:
+        image = np.ascontiguousarray(r.image, dtype=np.float32)
+        meta = {"key": key, "sha256": hashlib.sha256(image.tobytes()).hexdigest(), "shape": list(image.shape),
+                "exr_dtype": str(np.dtype(r.exr_dtype)), "trace_seconds": r.trace_seconds,
+                "parse_seconds": r.parse_seconds, "peak_memory_bytes": r.peak_memory_bytes, "stats": r.stats,
+                "warnings": r.warnings, "command": r.command, "stderr": r.stderr,
+                "wall_seconds": r.wall_seconds, "binary": [str(r.binary.path), r.binary.flavour],
+                "pov_text": r.pov_text}
+        blob = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+        return files.write_whole(self.entry(key), lambda f: np.savez(f, image=image, meta=blob))
+
+    def load(self, key: str) -> Optional[runner.RenderResult]:
+        path = self.entry(key)
+        if not path.is_file():
+            return None
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                image = np.array(z["image"], dtype=np.float32)
+                meta = json.loads(bytes(z["meta"]).decode())
+            if meta["key"] != key or list(image.shape) != meta["shape"] or \
+                    hashlib.sha256(np.ascontiguousarray(image).tobytes()).hexdigest() != meta["sha256"]:
+                raise ValueError("key or pixels do not match")
+            return runner.RenderResult(
+                image=image, exr_dtype=np.dtype(meta["exr_dtype"]), trace_seconds=meta["trace_seconds"],
+                parse_seconds=meta["parse_seconds"], peak_memory_bytes=meta["peak_memory_bytes"],
+                stats={k: float(v) for k, v in meta["stats"].items()}, warnings=meta["warnings"],
+                command=meta["command"], stderr=meta["stderr"], wall_seconds=float(meta["wall_seconds"]),
+                binary=Binary(Path(meta["binary"][0]), meta["binary"][1]), pov_text=meta["pov_text"])
+        except Exception:  # noqa: BLE001 - truncated, corrupt or foreign: not a finished render
+            path.unlink(missing_ok=True)
+            return None
+
+    def done(self, keys: Sequence[str]) -> int:
+        return sum(self.entry(k).is_file() for k in set(keys))
+
+    def settle_jobs(self, study: Study, by_key: dict[str, runner.RenderJob], common: dict[str, Any]) -> int:
+        """Keep the renders that finished in a job folder before the harness could store them
+        (it was killed: :func:`harness.core.runner.result_from_job`); remove every job folder
+        but one whose finished render cannot be stored now (a full disk: the next run tries
+        again). Returns how many were kept."""
+        kept = 0
+        for d in sorted(self.folder.glob("*.job")):
+            key = d.name[:-4]
+            if key in by_key and not self.entry(key).is_file():
+                opts = {**common, **by_key[key].options}
+                r = runner.result_from_job(d, opts["binary"], opts["width"], opts["height"],
+                                           opts.get("float_exr", False), opts.get("threads", 1))
+                if r is not None:
+                    try:
+                        self.save(key, r)
+                    except files.WriteError:
+                        continue
+                    kept += 1
+            shutil.rmtree(d, ignore_errors=True)
+        return kept
+
+    def prune(self, keys: Sequence[str]) -> None:
+        """Remove kept renders that are not among ``keys`` (other options, an older binary)."""
+        for f in self.folder.glob("*.npz"):
+            if f.stem not in set(keys):
+                f.unlink(missing_ok=True)
+
+
+def check_writable(folder: Path) -> None:
+    """Raise :class:`StudyError` unless ``folder`` can be created and written (a real write:
+    as root, permission bits say nothing; a read-only mount or a full disk still stop it)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = files.write_whole(folder / f".write-test-{os.getpid()}", b"povray-brdf study\n")
+        probe.unlink()
+    except OSError as e:
+        raise StudyError(f"the output folder {folder} is not writable ({e.strerror or e}, errno {e.errno}): "
+                         "nothing was rendered; give another folder with --out, or make this one writable "
+                         "(free space, remount read-write, fix its permissions)") from None
+
+
+#: What the study writes from the renders; removed before a run starts (so an older run's
+#: summary never stands for this one) and written again at its end, summary.json last.
+DERIVED = ("summary.json", "index.html", "sheet.png")
+
+
+def _invalidate(out_dir: Path) -> None:
+    for name in DERIVED:
+        (out_dir / name).unlink(missing_ok=True)
+    for sub in ("images", "plots"):
+        if (out_dir / sub).is_dir():
+            shutil.rmtree(out_dir / sub)
+
+
 # ---------------------------------------------------------------- rendering: local or Dask
+
+#: The client's temporary folder (the harness zip): ``study-dask-<pid>-*``.
+DASK_TMP_PREFIX = "study-dask-"
+
 
 def _harness_zip(directory: Path) -> Path:
     """The ``harness`` package (its .py files) as a zip, for ``Client.upload_file``."""
@@ -262,17 +479,29 @@ def _harness_zip(directory: Path) -> Path:
             z.write(f, f"harness/{f.relative_to(pkg).as_posix()}")
     return out
 
+
 def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool = True,
-                connect_timeout: float = 20.0, **common: Any) -> list[Union[runner.RenderResult, Exception]]:
+                connect_timeout: float = 20.0, worker_wait: float = 60.0,
+                on_done: Optional[Callable[[int, Union[runner.RenderResult, Exception]], None]] = None,
+                labels: Optional[Sequence[str]] = None,
+                **common: Any) -> list[Union[runner.RenderResult, Exception]]:
     """Render ``jobs`` as tasks of the Dask distributed scheduler at ``scheduler``; results in order.
 
-    A failed render comes back as its exception (like ``render_many(return_exceptions=True)``).
+    A failed render comes back as its exception (like ``render_many(return_exceptions=True)``);
+    ``on_done(index, result)`` runs here as each one arrives. A worker that dies takes its
+    renders with it (its ``povray`` dies too: :func:`harness.core.runner.render`); the scheduler
+    runs them again on another worker (up to its ``allowed-failures``, then the cell fails with
+    ``KilledWorker``). With no worker at all for ``worker_wait`` seconds the study stops with a
+    :class:`StudyError` naming the renders not done (``labels``). Interrupted (Ctrl-C), it
+    cancels its tasks and kills their renderers on the workers before raising.
     """
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
+        from distributed import wait as dask_wait
     except ImportError as e:  # the harness works without it; only this backend needs it
         raise StudyError("--scheduler needs Dask distributed: .venv/bin/pip install 'dask[distributed]' "
                          f"(the study extra of pyproject.toml); import failed: {e}") from None
+    labels = list(labels) if labels is not None else [f"render {i + 1}" for i in range(len(jobs))]
     out: list[Union[runner.RenderResult, Exception, None]] = [None] * len(jobs)
     try:
         client = Client(scheduler, timeout=f"{connect_timeout}s")
@@ -281,7 +510,9 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
     from harness.reports import dask_task
 
     fork = fork_binary()
-    with client, tempfile.TemporaryDirectory(prefix="study-dask-") as tmp:
+    tag = f"study-{os.getpid()}-{time.monotonic_ns()}"
+    runner.sweep_stale_jobs(prefix=DASK_TMP_PREFIX)
+    with client, tempfile.TemporaryDirectory(prefix=f"{DASK_TMP_PREFIX}{os.getpid()}-") as tmp:
         # The scheduler and the workers may run elsewhere (another venv, no checkout): send
         # them this harness (a zip placed first on their sys.path); they need the fork binary
         # and the staged files at the same paths (or POVRAY_BRDF on the workers).
@@ -291,21 +522,54 @@ def render_dask(jobs: Sequence[runner.RenderJob], scheduler: str, progress: bool
             client.upload_file(str(_harness_zip(Path(tmp))), load=True)
         futures = {}
         for i, job in enumerate(jobs):
-            fut = client.submit(dask_task.render_task, job.scene, {**common, **job.options}, str(fork.path),
+            fut = client.submit(dask_task.render_task, job.scene, {**common, **job.options}, str(fork.path), tag,
                                 pure=False, key=f"povray-brdf-render-{i}-{os.getpid()}-{time.monotonic_ns()}")
             futures[fut] = i
         failed = 0
-        with progress_bar(len(jobs), "study (dask)", enabled=progress) as prog:
-            for fut in as_completed(futures):
-                i = futures[fut]
-                try:
-                    out[i] = fut.result()
-                except Exception as e:  # noqa: BLE001 - a failed render is reported in its cell
-                    out[i] = e
-                    failed += 1
-                    prog.set_postfix_str(f"{failed} failed", refresh=False)
-                prog.update(1)
+        pending = set(futures)
+        no_workers_since: Optional[float] = None
+        try:
+            with progress_bar(len(jobs), "study (dask)", enabled=progress) as prog:
+                while pending:
+                    try:
+                        done, _ = dask_wait(list(pending), timeout=0.5, return_when="FIRST_COMPLETED")
+                    except TimeoutError:
+                        done = set()
+                    if not done:
+                        if not client.scheduler_info().get("workers"):
+                            no_workers_since = no_workers_since or time.monotonic()
+                            if time.monotonic() - no_workers_since > worker_wait:
+                                names = ", ".join(labels[futures[f]] for f in sorted(pending, key=futures.get))
+                                raise StudyError(f"no Dask worker at {scheduler} for {worker_wait:.0f} s (they died "
+                                                 f"or were stopped); {len(pending)} renders not done: {names}")
+                        else:
+                            no_workers_since = None
+                        continue
+                    for fut in done:
+                        pending.discard(fut)
+                        i = futures[fut]
+                        try:
+                            r: Union[runner.RenderResult, Exception] = fut.result()
+                        except Exception as e:  # noqa: BLE001 - a failed render is reported in its cell
+                            if type(e).__name__ == "KilledWorker":
+                                e = RuntimeError(f"{labels[i]}: its Dask workers died while rendering it, "
+                                                 f"too often to try again ({e})")
+                            r = e
+                            failed += 1
+                            prog.set_postfix_str(f"{failed} failed", refresh=False)
+                        out[i] = r
+                        if on_done is not None:
+                            on_done(i, r)
+                        prog.update(1)
+        except BaseException:
+            client.cancel(list(pending))
+            try:  # the cancelled tasks' threads go on; their renderers must not
+                client.run(dask_task.stop, tag, wait=True)
+            except Exception:  # noqa: BLE001 - a worker gone already has nothing left to stop
+                pass
+            raise
     return out  # type: ignore[return-value]
+
 
 @dataclass
 class Cell:
@@ -315,45 +579,127 @@ class Cell:
     result: Union[runner.RenderResult, Exception, None] = None
     png: Optional[Path] = None
 
+
+def _save_png(path: Path, image: np.ndarray) -> Path:
+    import matplotlib.image as mpimg
+
+    img = exr.to_display(image)
+    return files.write_whole(path, lambda f: mpimg.imsave(f, img, format="png"))
+
+
 def run(study: Study, out_dir: Path, *, jobs: Optional[int] = None, scheduler: Optional[str] = None,
-        progress: bool = True) -> dict[str, Any]:
-    """Render every cell of ``study`` into ``out_dir``; write sheet.png, index.html, summary.json."""
-    fork_binary()  # fail early, here, if the fork is missing
+        progress: bool = True, worker_wait: float = 60.0) -> dict[str, Any]:
+    """Render every cell of ``study`` into ``out_dir``; write sheet.png, index.html, summary.json.
+
+    Each finished render is kept at once in ``out_dir/renders`` (:class:`RenderStore`) and not
+    rendered again by a later run with the same scene, binary, options and tables. The folder
+    is checked writable first; the previous run's sheet, page and summary are removed before
+    any render and written again, each whole, at the end (summary.json last). Raises
+    :class:`StudyError` (a write failed: the message names the file) and :class:`Interrupted`.
+    """
+    fork = fork_binary()  # fail early, here, if the fork is missing
+    out_dir = Path(out_dir)
+    check_writable(out_dir)
+    runner.sweep_stale_jobs()
+    store = RenderStore(out_dir / "renders")
+    for d in (out_dir, out_dir / "images", out_dir / "plots", store.folder):
+        files.sweep_temps(d)
+    _invalidate(out_dir)
     cells = [Cell(m, s, l) for m in study.materials for s in study.shapes for l in study.lights]
+    common = dict(width=study.width, height=study.height, float_exr=True, threads=1, binary=fork)
     rjobs = [runner.RenderJob(scene_text(study, c.material, c.shape, c.light),
                               {"files": {k: str(v) for k, v in c.material.files.items()}})
              for c in cells]
-    common = dict(width=study.width, height=study.height, float_exr=True, threads=1)
+    library = _library_fingerprint(study)
+    keys = [render_key(j.scene, fork, {**common, **j.options}, library) for j in rjobs]
+    labels = [f"{c.material.name} | {c.shape} | {c.light}" for c in cells]
     t0 = time.perf_counter()
-    if scheduler:
-        results = render_dask(rjobs, scheduler, progress=progress, **common)
-    else:
-        results = runner.render_many(rjobs, max_workers=jobs, progress=progress, return_exceptions=True,
-                                     progress_label="study", binary="fork", **common)
+    try:
+        store.folder.mkdir(parents=True, exist_ok=True)
+        recovered = store.settle_jobs(study, dict(zip(keys, rjobs)), common)
+        results: list[Union[runner.RenderResult, Exception, None]] = [store.load(k) for k in keys]
+        reused = sum(r is not None for r in results)
+        todo = [i for i, r in enumerate(results) if r is None]
+        if reused and progress:
+            print(f"study: {reused} of {len(cells)} renders kept from an earlier run ({store.folder})"
+                  + (f", {recovered} of them finished after it was killed" if recovered else ""), file=sys.stderr)
+
+        def done(j: int, r: Union[runner.RenderResult, Exception]) -> None:
+            i = todo[j]
+            if isinstance(r, files.WriteError):
+                raise r  # the job folder is on a full or read-only disk: the next one would fail too
+            if isinstance(r, runner.RenderResult):
+                store.save(keys[i], r)  # whole, then counted: a WriteError stops the study
+            shutil.rmtree(store.job_dir(keys[i]), ignore_errors=True)
+
+        if not todo:
+            got = []
+        elif scheduler:
+            got = render_dask([rjobs[i] for i in todo], scheduler, progress=progress, on_done=done,
+                              labels=[labels[i] for i in todo], worker_wait=worker_wait,
+                              **{k: v for k, v in common.items() if k != "binary"})
+        else:
+            work = [runner.RenderJob(rjobs[i].scene, {**rjobs[i].options, "workdir": str(store.job_dir(keys[i]))})
+                    for i in todo]
+            got = runner.render_many(work, max_workers=jobs, progress=progress, return_exceptions=True,
+                                     progress_label="study", on_done=done, **common)
+        for i, r in zip(todo, got):
+            results[i] = r
+    except (KeyboardInterrupt, _Signalled) as e:
+        signum = e.signum if isinstance(e, _Signalled) else signal.SIGINT
+        runner.stop_renders()  # any renderer still running (render_many stopped its own)
+        try:
+            store.settle_jobs(study, dict(zip(keys, rjobs)), common)
+        finally:
+            runner.allow_renders()
+        raise Interrupted(signum, store.done(keys), len(keys), store.folder) from None
+    except files.WriteError as e:
+        store.settle_jobs(study, dict(zip(keys, rjobs)), common)
+        raise StudyError(f"{e}; {store.done(keys)} of {len(keys)} renders are done and kept in {store.folder}: "
+                         "the next run renders only the rest") from None
     wall = time.perf_counter() - t0
+    try:
+        return _write_outputs(study, cells, results, out_dir, store, keys, wall, reused,
+                              f"dask {scheduler}" if scheduler else f"local, {jobs or os.cpu_count()} jobs")
+    except files.WriteError as e:
+        _invalidate(out_dir)  # no partial set of pages left looking like a finished study
+        raise StudyError(f"{e}; {store.done(keys)} of {len(keys)} renders are done and kept in {store.folder}: "
+                         "the next run renders only the rest") from None
+    except (KeyboardInterrupt, _Signalled) as e:
+        _invalidate(out_dir)
+        raise Interrupted(e.signum if isinstance(e, _Signalled) else signal.SIGINT, store.done(keys), len(keys),
+                          store.folder) from None
+    except BaseException:
+        _invalidate(out_dir)
+        raise
+
+
+def _write_outputs(study: Study, cells: list[Cell], results: Sequence[Any], out_dir: Path, store: RenderStore,
+                   keys: Sequence[str], wall: float, reused: int, backend: str) -> dict[str, Any]:
     img_dir = out_dir / "images"
-    img_dir.mkdir(parents=True, exist_ok=True)
     for i, (c, r) in enumerate(zip(cells, results)):
         c.result = r
         if isinstance(r, runner.RenderResult):
-            c.png = exr.write_png_preview(img_dir / f"{i:03d}-{page.slug(c.material.name, 40)}-{c.shape}-{c.light}.png", r.image)
+            c.png = _save_png(img_dir / f"{i:03d}-{page.slug(c.material.name, 40)}-{c.shape}-{c.light}.png", r.image)
     plots = polar_plots(study, out_dir / "plots")
     sheet = contact_sheet(study, cells, out_dir / "sheet.png")
     summary = {
-        "title": study.title, "study": str(study.path), "backend": f"dask {scheduler}" if scheduler else
-        f"local, {jobs or os.cpu_count()} jobs", "wall_seconds": wall, "renders": len(cells),
+        "title": study.title, "study": str(study.path), "backend": backend, "wall_seconds": wall,
+        "complete": True, "renders": len(cells), "renders_reused": reused,
         "failed": sum(isinstance(c.result, Exception) for c in cells), "materials": len(study.materials),
-        "cells": [{"material": c.material.name, "shape": c.shape, "light": c.light,
+        "cells": [{"material": c.material.name, "shape": c.shape, "light": c.light, "key": k,
                    "trace_seconds": getattr(c.result, "trace_seconds", None),
                    "parse_seconds": getattr(c.result, "parse_seconds", None),
                    "peak_memory_bytes": getattr(c.result, "peak_memory_bytes", None),
                    "worker_pid": (c.result.stats.get("worker_pid") if isinstance(c.result, runner.RenderResult) else None),
                    "error": str(c.result) if isinstance(c.result, Exception) else None,
-                   "image": str(c.png) if c.png else None} for c in cells],
+                   "image": str(c.png) if c.png else None} for c, k in zip(cells, keys)],
     }
-    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     write_html(study, cells, plots, sheet, out_dir / "index.html", summary)
+    files.write_whole(out_dir / "summary.json", json.dumps(summary, indent=1))  # last: the run is complete
+    store.prune(keys)
     return summary
+
 
 def polar_plots(study: Study, out_dir: Path) -> dict[str, Path]:
     """Polar plots (:mod:`harness.tools.brdfplot`) of every table material (name -> PNG); a
@@ -365,6 +711,8 @@ def polar_plots(study: Study, out_dir: Path) -> dict[str, Path]:
         try:
             plots[m.name] = brdfplot.plot(Path(m.table), out_dir / f"{page.slug(m.name, 40)}.png",
                                           theta_i=(0, 45, 75), title=m.name)
+        except files.WriteError:
+            raise
         except (OSError, ValueError) as e:
             print(f"study: plot of {m.table} failed: {e}", file=sys.stderr)
     return plots
@@ -452,26 +800,46 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--jobs", type=int, default=None, help="local renders at a time (default: the CPU count)")
     ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
                     help="send the renders to this Dask distributed scheduler (e.g. tcp://127.0.0.1:8786)")
+    ap.add_argument("--worker-wait", type=float, default=60.0, metavar="SECONDS",
+                    help="with --scheduler: stop when no Dask worker is left for this long (default 60)")
     ap.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"), help="override the study's size")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress line")
     a = ap.parse_args(argv)
     if a.study is None:
         ap.error("name a study file (TOML); its format: harness/reports/study.py, studies/example.toml")
+    def on_signal(signum: int, frame: Any) -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not cut the clean-up short
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise _Signalled(signum)
+
+    handlers = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         study = load_study(a.study)
         if a.size:
             study.width, study.height = a.size
         out = a.out or OUT_ROOT / a.study.stem
-        summary = run(study, out, jobs=a.jobs, scheduler=a.scheduler, progress=not a.quiet)
+        summary = run(study, out, jobs=a.jobs, scheduler=a.scheduler, progress=not a.quiet, worker_wait=a.worker_wait)
+    except Interrupted as e:
+        print(f"study: {e}", file=sys.stderr)
+        return 128 + e.signum
+    except (KeyboardInterrupt, _Signalled) as e:  # before or after the renders
+        signum = e.signum if isinstance(e, _Signalled) else signal.SIGINT
+        print(f"study: interrupted ({'Ctrl-C' if signum == signal.SIGINT else signal.Signals(signum).name}) "
+              "before or after the renders; renders done are kept in the output folder's renders/", file=sys.stderr)
+        return 128 + signum
     except (StudyError, BinaryNotFound, RuntimeError, OSError) as e:
         print(f"study: {e}", file=sys.stderr)
         return 2
+    finally:
+        for sig, h in handlers.items():
+            signal.signal(sig, h)
     traces = [c["trace_seconds"] for c in summary["cells"] if c["trace_seconds"] is not None]
     print(f"study: {summary['materials']} materials, {summary['renders']} renders "
-          f"({summary['failed']} failed) in {summary['wall_seconds']:.1f} s wall ({summary['backend']}); "
-          f"trace time total {sum(traces):.1f} s")
+          f"({summary['failed']} failed, {summary['renders_reused']} kept from an earlier run) in "
+          f"{summary['wall_seconds']:.1f} s wall ({summary['backend']}); trace time total {sum(traces):.1f} s")
     print(f"study: sheet {out / 'sheet.png'}; page {out / 'index.html'}")
     return 1 if summary["failed"] else 0
+
 
 if __name__ == "__main__":
     sys.exit(main())
