@@ -278,6 +278,18 @@ def test_cost_reader_refuses_or_reads(data: bytes):
     _check_costs(data)
 
 
+def test_cost_writer_writes_what_the_readers_read(tmp_path):
+    """Regression (Hypothesis, the long run): format_costs wrote 1e-6 as "0.0000", a line both
+    readers refuse; it now writes 5 significant digits and refuses what no reader accepts."""
+    p = tmp_path / "c.txt"
+    want = {"lafortune k=1": 1e-6, "ward": 0.012345, "table": 1e6}
+    p.write_text(cost.format_costs(want))
+    assert cost.read_costs(p) == pytest.approx(want, rel=5e-5)
+    for bad in ({"lambert": 0.0}, {"lambert": 2e6}, {"lam\x01bert": 1.0}, {"lambert # x": 1.0}, {"": 1.0}):
+        with pytest.raises(ValueError):
+            cost.format_costs(bad)
+
+
 # ---------------------------------------------------------------- measured profiles
 
 PROFILES = [

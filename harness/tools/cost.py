@@ -104,7 +104,14 @@ def format_costs(costs: Mapping[str, float], note: str = "") -> str:
              f"{SIZE}x{SIZE}, {len(LIGHTS)} distant lights, 1 thread, median of alternating pairs"]
     if note:
         lines.append(f"# {note}")
-    lines += [f"{k} {v:.4f}" for k, v in costs.items()]
+    for k, v in costs.items():
+        # what read_costs and brdftool read back: 5 significant digits ("1.0200", "1.0000e-06";
+        # a fixed 4 decimals wrote a ratio below 5e-5 as "0.0000", which both refuse)
+        if not MIN_RATIO <= v <= MAX_RATIO or not k or k != " ".join(k.split()) \
+                or "#" in k or not all(0x21 <= ord(c) <= 0x7E for c in k.replace(" ", "")):
+            raise ValueError(f"cost {k!r} {v!r}: expected a family name in printable ASCII and a ratio in "
+                             f"[{MIN_RATIO:g}, {MAX_RATIO:g}]")
+        lines.append(f"{k} {v:#.5g}")
     return "\n".join(lines) + "\n"
 
 
