@@ -65,9 +65,10 @@ MAX_PAYLOAD_BYTES = 2 << 30           # the C++ loader's default (LoadOptions::m
 MAX_THETA_NODES, MAX_ISO_PHI_NODES, MAX_ANISO_PHI_NODES = 9001, 18001, 36000
 MAX_HD_THETA_NODES, MAX_HD_PHI_NODES = 9000, 18000
 FLAG_FOLDED, FLAG_NODATA_FILLED = 1, 2
-#: The largest value a table may hold (1/sr): float32's largest finite value; only +-Inf lies
-#: beyond it, and Inf is an error in every layout and under every no-data policy, as in the loader.
-MAX_VALUE = float(np.finfo(np.float32).max)
+#: The largest value a table may hold, 1/sr: the loader's kMaxTableValue (shading/table.h,
+#: brdf_data/README.md "Largest value"). Above it (and at +-Inf) a value is an error in every
+#: layout and under every no-data policy; a sharp lobe peaks far below it, and 1e38 rendered inf.
+MAX_VALUE = 1e6
 
 _REMAKE = ("The file is not a table this reader can use: remake it with `brdftool tabulate`, `convert` "
            "or harness.core.brdf_io.write_brdf (format: brdf_data/README.md).")
@@ -146,8 +147,8 @@ def read_table(path: PathLike, verify: bool = True, nodata: str = "reject") -> T
 
     ``verify`` checks the payload checksum (pure Python, about 0.1 s per MB). ``nodata``:
     "reject" (the loader's default) refuses NaN and negative values; "keep" returns them as NaN
-    (a sparse table from :func:`write_brdf`). Inf and values above :data:`MAX_VALUE` are
-    always refused."""
+    (a sparse table from :func:`write_brdf`). Inf and values above :data:`MAX_VALUE` (1e6 1/sr)
+    are always refused."""
     if nodata not in ("reject", "keep"):
         raise ValueError(f"nodata must be 'reject' or 'keep', not {nodata!r}")
     d = Path(path).read_bytes()
@@ -227,20 +228,22 @@ def read_table(path: PathLike, verify: bool = True, nodata: str = "reject") -> T
             raise bad(88, f"payload FNV-1a-64 0x{checksum:016x} (header)",
                       f"0x{sum_:016x} (computed over bytes {want_off}..{total})", _DAMAGED)
     v = np.frombuffer(payload, dtype="<f4")
-    with np.errstate(invalid="ignore"):
-        over = np.isinf(v) | (np.abs(v) > MAX_VALUE)
-        nodata_mask = ~(v >= 0)
-    if over.any():
-        k = int(np.flatnonzero(over)[0])
-        what = "a finite value" if np.isinf(v[k]) else f"a value <= {MAX_VALUE:.9g}"
-        raise bad(want_off + 4 * k, f"{what} at {_value_label(layout, n, C, folded, k)}",
-                  "inf" if v[k] > 0 else "-inf" if np.isinf(v[k]) else _float_text(float(v[k])), _VALUES)
+    # The loader's value loop: the first value (in payload order) that is +-Inf, above MAX_VALUE,
+    # or (reject) NaN or negative is the error; -1e38 is no data, not an overflow.
+    over = np.isinf(v) | (v > MAX_VALUE)
+    nodata_mask = ~(v >= 0)
+    first = np.flatnonzero(over | nodata_mask if nodata == "reject" else over)
+    if first.size:
+        k = int(first[0])
+        label = _value_label(layout, n, C, folded, k)
+        if np.isinf(v[k]):
+            raise bad(want_off + 4 * k, f"a finite value at {label}", "inf" if v[k] > 0 else "-inf", _VALUES)
+        if over[k]:
+            raise bad(want_off + 4 * k, f"a value <= {MAX_VALUE:g} (1/sr) at {label} (larger is a unit or scale "
+                      "error, or damage: brdf_data/README.md)", _float_text(float(v[k])), _VALUES)
+        raise bad(want_off + 4 * k, f"a value >= 0 at {label} (no-data policy: reject)", _float_text(float(v[k])),
+                  _NODATA)
     if nodata_mask.any():
-        if nodata == "reject":
-            k = int(np.flatnonzero(nodata_mask)[0])
-            raise bad(want_off + 4 * k,
-                      f"a value >= 0 at {_value_label(layout, n, C, folded, k)} (no-data policy: reject)",
-                      _float_text(float(v[k])), _NODATA)
         v = np.where(nodata_mask, np.float32(np.nan), v).astype("<f4")
     if layout == ANISOTROPIC:
         f = v.reshape(n[0], n[1], n[2], n[3], C)
@@ -327,14 +330,16 @@ def halfdiff_lookup(f: np.ndarray, wi: np.ndarray, wo: np.ndarray) -> np.ndarray
 def write_brdf(path: PathLike, f: np.ndarray, description: str = "", nodata_filled: int = 0) -> Path:
     """Write an unfolded isotropic table ``f`` of shape (n, n, 2n-1, C), C in {1, 3}, in 1/sr.
 
-    NaN values are written as they are (no-data). Negative values and Inf are refused.
+    NaN values are written as they are (no-data). Negative values, Inf and values above
+    :data:`MAX_VALUE` are refused.
     """
     f = np.asarray(f, dtype="<f4")
     if f.ndim != 4 or f.shape[3] not in (1, 3):
         raise ValueError(f"expected (theta_i, theta_r, phi, C) with C 1 or 3, got {f.shape}")
     n0, n1, n2, C = f.shape
-    if np.isinf(f).any() or (f < 0).any():
-        raise ValueError("values must be finite and >= 0 (NaN marks no data)")
+    if np.isinf(f).any() or (f < 0).any() or (f > MAX_VALUE).any():
+        raise ValueError(f"values must be finite, >= 0 and <= {MAX_VALUE:g} 1/sr (NaN marks no data), as the "
+                         "loader reads them")
     desc = description.encode("utf-8")[:4096]
     off = (112 + len(desc) + 15) & ~15
     payload = f.tobytes(order="C")
