@@ -228,7 +228,9 @@ dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg
 FUZZ_APT_PACKAGES := clang libclang-rt-dev
 FUZZ_BUILD     := $(BUILD)/fuzz
 FUZZ_SECONDS   ?= 60
-FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz ssp_fuzz
+FUZZ_TARGETS   := table_header_fuzz table_fuzz merl_fuzz ssp_fuzz costs_fuzz
+# Examples per Python reader in `make fuzz` (tests/test_reader_fuzz.py; the fast suite runs 250).
+READER_FUZZ_EXAMPLES ?= 5000
 SAN_FLAGS      := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer -g
 SANITIZE_BUILD := $(BUILD)/sanitize
 TSAN_BUILD     := $(BUILD)/tsan
@@ -244,11 +246,13 @@ $(STAMPS)/deps-fuzz: mk/deps.sh | $(STAMPS)/deps
 	bash mk/deps.sh $(FUZZ_APT_PACKAGES)
 	@touch $@
 
-fuzz: $(STAMPS)/deps-fuzz ## libFuzzer on the .brdf and MERL readers, FUZZ_SECONDS (60) per target
+fuzz: $(STAMPS)/deps-fuzz venv ## libFuzzer on the C++ readers (FUZZ_SECONDS, 60, per target), then Hypothesis on the Python readers
 	@test -f $(FUZZ_BUILD)/build.ninja || CXX=clang++ cmake -S shading -B $(FUZZ_BUILD) -G Ninja \
 	  -DCMAKE_BUILD_TYPE=Release -DSHADING_TESTS=OFF -DSHADING_FUZZ=ON >/dev/null
 	cmake --build $(FUZZ_BUILD) -j $(JOBS) --target $(FUZZ_TARGETS)
-	bash mk/fuzz.sh $(FUZZ_BUILD) shading/fuzz/corpus $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+	status=0; bash mk/fuzz.sh $(FUZZ_BUILD) shading/fuzz/corpus $(FUZZ_SECONDS) $(FUZZ_TARGETS) || status=1; \
+	READER_FUZZ_EXAMPLES=$(READER_FUZZ_EXAMPLES) $(PY) -m pytest -q -p no:cacheprovider tests/test_reader_fuzz.py \
+	  -k refuses_or_reads || status=1; exit $$status
 
 sanitize: sanitize-unit sanitize-tsan sanitize-fork ## ASan+UBSan unit tests, TSan registry tests, ASan+UBSan fork on the harness scenes
 

@@ -112,7 +112,7 @@ def test_write_brdf_with_nodata_then_fill(tmp_path):
     f[3, 4, 5] = np.nan
     f[6, 6, 0:4] = np.nan
     sparse = write_brdf(tmp_path / "s.brdf", f, "test sparse")
-    back, desc = read_brdf(sparse)
+    back, desc = read_brdf(sparse, nodata="keep")
     assert desc == "test sparse" and np.isnan(back[3, 4, 5]).all()
     assert "5 no-data cells filled" in tool("fill", sparse, "-o", tmp_path / "f.brdf").stdout
     filled, _ = read_brdf(tmp_path / "f.brdf")

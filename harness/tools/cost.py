@@ -21,6 +21,7 @@ FAMILY is a prefix of brdftool's family names (the longest matching prefix appli
 from __future__ import annotations
 
 import argparse
+import re
 import statistics
 import sys
 import time
@@ -103,23 +104,80 @@ def format_costs(costs: Mapping[str, float], note: str = "") -> str:
              f"{SIZE}x{SIZE}, {len(LIGHTS)} distant lights, 1 thread, median of alternating pairs"]
     if note:
         lines.append(f"# {note}")
-    lines += [f"{k} {v:.4f}" for k, v in costs.items()]
+    for k, v in costs.items():
+        # what read_costs and brdftool read back: 5 significant digits ("1.0200", "1.0000e-06";
+        # a fixed 4 decimals wrote a ratio below 5e-5 as "0.0000", which both refuse)
+        if not MIN_RATIO <= v <= MAX_RATIO or not k or k != " ".join(k.split()) \
+                or "#" in k or not all(0x21 <= ord(c) <= 0x7E for c in k.replace(" ", "")):
+            raise ValueError(f"cost {k!r} {v!r}: expected a family name in printable ASCII and a ratio in "
+                             f"[{MIN_RATIO:g}, {MAX_RATIO:g}]")
+        lines.append(f"{k} {v:#.5g}")
     return "\n".join(lines) + "\n"
 
 
-def read_costs(path: Path = COSTS_PATH) -> dict[str, float]:
-    """The cost file as a dict (same grammar brdftool reads)."""
-    out = {}
-    for n, line in enumerate(Path(path).read_text().splitlines(), 1):
-        line = line.split("#", 1)[0].strip()
-        if not line:
+#: RATIO's range and form, as brdftool's parser (shading/src/fit.cpp, parse_costs) has them.
+MIN_RATIO, MAX_RATIO = 1e-6, 1e6
+_DECIMAL = re.compile(rb"\+?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_SPACE = b" \t\r\v\f"
+
+
+class CostFileError(ValueError):
+    """A cost file brdftool would refuse: ``PATH: line L, offset B: expected X, found Y. ...``
+    (B: the byte offset in the file), the message brdftool gives for the same file."""
+
+    def __init__(self, path: Path, line: int, offset: int, expected: str, found: str):
+        self.path, self.line, self.offset = str(path), line, offset
+        super().__init__(f"{path}: line {line}, offset {offset}: expected {expected}, found {found}. Each line is "
+                         "'FAMILY RATIO' (e.g. 'microfacet d=tr 1.15'), '#' starts a comment; "
+                         "`brdf-cost --force` writes the file again")
+
+
+def _shown(w: bytes) -> str:
+    s = "".join(chr(c) if 0x20 <= c < 0x7F and c not in (0x27, 0x5C) else f"\\x{c:02x}" for c in w[:40])
+    return f"'{s}...'" if len(w) > 40 else f"'{s}'"
+
+
+def parse_costs(data: bytes, path: Path) -> dict[str, float]:
+    """The bytes of a cost file as a dict, by brdftool's grammar (``parse_costs`` in
+    shading/src/fit.cpp): lines end at '\\n', '#' starts a comment, words are separated by ASCII
+    spaces; the last word is RATIO (a decimal number in [MIN_RATIO, MAX_RATIO]), the others,
+    printable ASCII joined by one space, FAMILY. A later line for the same FAMILY wins."""
+    out: dict[str, float] = {}
+    start = 0
+    for lineno, raw in enumerate(data.split(b"\n"), 1):
+        line = raw.split(b"#", 1)[0]
+        words, k = [], 0
+        while k < len(line):
+            if line[k] in _SPACE:
+                k += 1
+                continue
+            b = k
+            while k < len(line) and line[k] not in _SPACE:
+                k += 1
+            words.append((start + b, line[b:k]))
+        start += len(raw) + 1
+        if not words:
             continue
-        key, _, val = line.rpartition(" ")
-        v = float(val)
-        if not key.strip() or not v > 0:
-            raise ValueError(f"{path}: line {n}: expected 'FAMILY RATIO'")
-        out[key.strip()] = v
+        if len(words) < 2:
+            raise CostFileError(path, lineno, words[0][0], "'FAMILY RATIO' (two or more words)",
+                                _shown(words[0][1]) + " alone")
+        for at, w in words[:-1]:
+            for c, ch in enumerate(w):
+                if not 0x21 <= ch <= 0x7E:
+                    raise CostFileError(path, lineno, at + c, "a family name in printable ASCII", _shown(bytes([ch])))
+        at, word = words[-1]
+        if not _DECIMAL.fullmatch(word):
+            raise CostFileError(path, lineno, at, "RATIO, a decimal number", _shown(word))
+        v = float(word)
+        if not MIN_RATIO <= v <= MAX_RATIO:
+            raise CostFileError(path, lineno, at, "RATIO in [1e-06, 1e+06]", _shown(word))
+        out[" ".join(w.decode("ascii") for _, w in words[:-1])] = v
     return out
+
+
+def read_costs(path: Path = COSTS_PATH) -> dict[str, float]:
+    """The cost file as a dict (:func:`parse_costs`; :class:`CostFileError` on a line brdftool refuses)."""
+    return parse_costs(Path(path).read_bytes(), Path(path))
 
 
 def ensure_costs(path: Path = COSTS_PATH, force: bool = False, repeat: int = 5,

@@ -361,7 +361,7 @@ def read_profile_csv(path: Path, units: Optional[str] = None) -> Profile:
         raise ProfileError(f"{path}: line {hline}: unknown length unit [{runit}]; known: {', '.join(LENGTH_UNITS_MM)}")
     vunit = cols[nr][1]
     per = _length_per_area(vunit)
-    data = []
+    data, lines = [], []
     for line, text_row in rows[1:]:
         cells = next(csv.reader([text_row]))
         if len(cells) != len(cols):
@@ -379,29 +379,47 @@ def read_profile_csv(path: Path, units: Optional[str] = None) -> Profile:
         if any(v < 0 for v in vals[:nr]):
             raise ProfileError(f"{path}: line {line}: a radius cannot be negative")
         data.append(vals)
+        lines.append(line)
     if len(data) < 5:
         raise ProfileError(f"{path}: {len(data)} data lines; a fit of two coefficients needs at least 5 radii")
     a = np.asarray(data)
     scale = LENGTH_UNITS_MM[runit]
+    with np.errstate(over="ignore"):
+        big = ~np.isfinite(a[:, :nr] * scale).all(axis=1)
+    if big.any():
+        raise ProfileError(f"{path}: line {lines[int(np.flatnonzero(big)[0])]}: a radius too large once converted to "
+                           f"mm (not finite in double precision); check the unit [{runit}] in the header")
     edges = None
     if binned:
-        if np.any(a[:, 1] <= a[:, 0]) or np.any(a[1:, 0] < a[:-1, 1] - 1e-12 * scale):
-            raise ProfileError(f"{path}: the annuli must be ordered and not overlap (r_inner < r_outer <= next r_inner)")
-        if np.any(np.abs(a[1:, 0] - a[:-1, 1]) > 1e-9 * np.maximum(1.0, a[1:, 0])):
-            raise ProfileError(f"{path}: the annuli must be contiguous (each r_inner the previous r_outer)")
+        bad = np.flatnonzero(np.concatenate([a[:1, 1] <= a[:1, 0], (a[1:, 1] <= a[1:, 0])
+                                             | (a[1:, 0] < a[:-1, 1] - 1e-12 * scale)]))
+        if bad.size:
+            raise ProfileError(f"{path}: line {lines[bad[0]]}: the annuli must be ordered and not overlap "
+                               "(r_inner < r_outer <= next r_inner)")
+        bad = np.flatnonzero(np.abs(a[1:, 0] - a[:-1, 1]) > 1e-9 * np.maximum(1.0, a[1:, 0]))
+        if bad.size:
+            raise ProfileError(f"{path}: line {lines[bad[0] + 1]}: the annuli must be contiguous "
+                               "(each r_inner the previous r_outer)")
         edges = np.concatenate([a[:, 0], a[-1:, 1]]) * scale
-        r = 0.5 * (edges[:-1] + edges[1:])
+        with np.errstate(over="ignore"):
+            r = 0.5 * (edges[:-1] + edges[1:])
     else:
         r = a[:, 0] * scale
-        if np.any(np.diff(r) <= 0):
-            raise ProfileError(f"{path}: the radii must increase from line to line")
+        bad = np.flatnonzero(~(np.diff(r) > 0))
+        if bad.size:
+            raise ProfileError(f"{path}: line {lines[bad[0] + 1]}: the radii must increase from line to line")
     rd = a[:, nr].copy()
     err = a[:, nr + 1].copy() if a.shape[1] == nr + 2 else None
     if per is not None:  # absolute: per unit area of `per`, converted to 1/mm^2
         k = 1.0 / LENGTH_UNITS_MM[per] ** 2
-        rd *= k
-        if err is not None:
-            err *= k
+        with np.errstate(over="ignore"):
+            rd *= k
+            if err is not None:
+                err *= k
+    big = ~np.isfinite(np.column_stack([r, rd] + ([err] if err is not None else []))).all(axis=1)
+    if big.any():
+        raise ProfileError(f"{path}: line {lines[int(np.flatnonzero(big)[0])]}: a value too large once converted to "
+                           "1/mm^2 (not finite in double precision); check the units in the header")
     return Profile(str(path), r, rd, err, edges, per is not None, runit)
 
 

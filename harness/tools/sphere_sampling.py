@@ -336,7 +336,7 @@ def compare_tables(table: Path, sparse: Path, reference: Path, step: float) -> d
     """Cos-weighted rel-RMSE of a recovered table against a known one: over the nodes the
     photographs covered and over every node after filling, for theta < 90 and theta <= 80."""
     ref = model_nodes(reference, step)
-    sp, _ = read_brdf(sparse)
+    sp, _ = read_brdf(sparse, nodata="keep")
     fl, _ = read_brdf(table)
     sp, fl = sp.astype(np.float64), fl.astype(np.float64)
     n, m = sp.shape[0], sp.shape[2]

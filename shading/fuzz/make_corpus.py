@@ -16,6 +16,10 @@ ssp/: small exact-profile tables made by sstool (next to brdftool: 4 albedo node
 photons; one node, 2 x 2 nodes, slabs), then broken variants (truncated, magic, version, flags,
 counts, reserved field, settings, axes, payload offset and size, checksum) and valid-checksum
 payloads with NaN, negative and inconsistent values.
+costs/: cost files (`brdftool recommend --costs`): the form `brdf-cost` writes, comments, tabs,
+CRLF, keys of several words, repeated families; then refused lines (one word, non-decimal,
+out-of-range and non-finite ratios, a NUL inside the ratio, non-ASCII families), and the
+regression inputs of the parser's findings (see shading/tests/fit_test.cpp, Fit.CostFileGrammar).
 """
 import math
 import os
@@ -209,6 +213,37 @@ def main(brdftool, out):
     }
     for name, data in sbad.items():
         put(sdir, "bad-" + name + ".ssp", data)
+
+    # Cost files: FAMILY RATIO lines (shading/src/fit.cpp, parse_costs).
+    cdir = os.path.join(out, "costs")
+    os.makedirs(cdir, exist_ok=True)
+    costs = {
+        "measured.txt": b"# trace-time ratio vs stock POV phong (harness/tools/cost.py): sphere 640x640\n"
+                        b"# measured 2026-01-01 in 300 s\nlambert 1.0200\noren_nayar 1.0612\nward 1.1000\n"
+                        b"lafortune k=1 1.1310\nmicrofacet d=tr 1.3000\n"
+                        b"microfacet d=tr g=smith f=conductor 1.5521\ntable 1.2500\n",
+        "spaces.txt": b"  lambert\t1.5\r\nward\x0b2\x0c# x\r\n\n\t\n#\nmicrofacet   d=tr  +.5e1\n",
+        "repeated.txt": b"lambert 1\nlambert 2\nlamb 3\n",
+        "no-newline.txt": b"table 1e-6",
+        "empty.txt": b"",
+        "bad-one-word.txt": b"lambert\n",
+        "bad-ratio-word.txt": b"ok 1\nward x\n",
+        "bad-ratio-zero.txt": b"lambert 0\n",
+        "bad-ratio-huge.txt": b"lambert 1000001\n",
+        "bad-ratio-inf.txt": b"lambert inf\n",
+        "bad-ratio-nan.txt": b"lambert nan\n",
+        "bad-ratio-overflow.txt": b"lambert 1e999\n",
+        "bad-ratio-hex.txt": b"lambert 0x1p2\n",
+        "bad-family-utf8.txt": b"lamb\xc3\xa9rt 1.0\n",
+        "bad-family-nbsp.txt": b"lambert\xa01.0\n",
+        # Regression: the old parser stopped the ratio at a NUL (strtod on c_str) and accepted 1.5.
+        "bad-ratio-nul.txt": b"lambert 1.5\x00junk\n",
+        # Regression: the old parser took a NUL inside a family as part of the key; the
+        # harness's reader could not (not UTF-8 text it splits the same way).
+        "bad-family-nul.txt": b"lam\x00bert 1.5\n",
+    }
+    for name, data in costs.items():
+        put(cdir, name, data)
 
 
 if __name__ == "__main__":

@@ -197,4 +197,39 @@ TEST(Fit, CostTables) {
     std::remove(path.c_str());
 }
 
+// The grammar of cost files, shared with harness/tools/cost.py (tests/test_reader_fuzz.py runs
+// the same cases through both): refused lines name the line and the byte offset.
+TEST(Fit, CostFileGrammar) {
+    using Entries = std::vector<std::pair<std::string, double>>;
+    EXPECT_EQ(parse_costs("# c\nlambert 1.02\nmicrofacet d=tr   1.3  # x\n", "c.txt").entries,
+              (Entries{{"lambert", 1.02}, {"microfacet d=tr", 1.3}}));
+    EXPECT_EQ(parse_costs("lambert\t1.5\r\nward\v2\f\n", "c.txt").entries, (Entries{{"lambert", 1.5}, {"ward", 2.0}}));
+    EXPECT_EQ(parse_costs("lambert .5\nlambert +5.\n", "c.txt").cost_of("lambert"), 5.0);
+    EXPECT_TRUE(parse_costs("", "c.txt").entries.empty());
+    const std::pair<std::string, std::string> bad[] = {
+        // Regression (costs_fuzz, corpus/costs/bad-ratio-nul.txt): strtod stopped at the NUL
+        // and the old check (*end == '\0') took "1.5\0junk" for 1.5.
+        {std::string("lambert 1.5\0junk\n", 17), "c.txt: line 1, offset 8: expected RATIO, a decimal number"},
+        {std::string("lam\0bert 1.5\n", 13), "c.txt: line 1, offset 3: expected a family name in printable ASCII"},
+        {"lambert inf\n", "c.txt: line 1, offset 8: expected RATIO, a decimal number, found 'inf'"},
+        {"lambert nan\n", "c.txt: line 1, offset 8: expected RATIO, a decimal number"},
+        {"lambert 1e999\n", "c.txt: line 1, offset 8: expected RATIO in [1e-06, 1e+06], found '1e999'"},
+        {"lambert 0x1p2\n", "c.txt: line 1, offset 8: expected RATIO, a decimal number"},
+        {"lambert 1_0\n", "c.txt: line 1, offset 8: expected RATIO, a decimal number"},
+        {"ok 1\nlambert 0\n", "c.txt: line 2, offset 13: expected RATIO in [1e-06, 1e+06], found '0'"},
+        {"ok 1\n\nward x\n", "c.txt: line 3, offset 11: expected RATIO, a decimal number, found 'x'"},
+        {"lambert\n", "c.txt: line 1, offset 0: expected 'FAMILY RATIO' (two or more words), found 'lambert' alone"},
+        {"lamb\xc3\xa9rt 1.0\n", "c.txt: line 1, offset 4: expected a family name in printable ASCII, found '\\xc3'"},
+        {"lambert\xa0" "1.0\n", "c.txt: line 1, offset 0: expected 'FAMILY RATIO' (two or more words)"},
+    };
+    for (const auto& [text, want] : bad) {
+        try {
+            parse_costs(text, "c.txt");
+            ADD_FAILURE() << "accepted: " << text;
+        } catch (const TableError& e) {
+            EXPECT_EQ(std::string(e.what()).substr(0, want.size()), want);
+        }
+    }
+}
+
 }  // namespace

@@ -133,7 +133,14 @@ struct CostTable {
 };
 CostTable builtin_costs();
 // Text file: lines "KEY<whitespace>RATIO", '#' comments. Keys as above (may contain spaces:
-// the ratio is the last word). Throws TableError naming the path on a malformed line.
+// the ratio is the last word; the key's words are joined by one space and must be printable
+// ASCII). RATIO is a decimal number ([+]d[.d][e[+-]d]) in [kMinCostRatio, kMaxCostRatio].
+// Lines end at '\n'; spaces are ' ', '\t', '\r', '\v', '\f'. harness/tools/cost.py reads the
+// same grammar. parse_costs reads the bytes of a file named `name`; both throw TableError
+// "NAME: line L, offset B: expected X, found Y. ..." (B: byte offset in the file).
+constexpr double kMinCostRatio = 1e-6;
+constexpr double kMaxCostRatio = 1e6;
+CostTable parse_costs(const std::string& text, const std::string& name);
 CostTable load_costs(const std::string& path);
 
 }  // namespace shading
