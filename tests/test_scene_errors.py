@@ -122,7 +122,21 @@ def test_directory_as_table_is_an_error_at_the_line(fork, table_files):
 
 def test_directory_as_table_names_the_file(fork, table_files):
     msg = scene_error(fork, 'brdf_table { "a-directory.brdf" }', table_files)
-    assert "brdf_table: a-directory.brdf: offset 0: expected a .brdf file" in msg, msg
+    assert "brdf_table: a-directory.brdf: offset 0: expected a .brdf file, found a folder: give the path of a " \
+           "table file in it" in msg, msg  # not "9223372036854775807 bytes (a directory?)"
+
+
+def test_a_sample_spacing_far_too_small_says_what_to_do_and_no_uncategorized_error(fork):
+    """Refused when the render builds the object's point cloud: one message, then POV's
+    parameter error (it was "Uncategorized error.", patch 0028)."""
+    with pytest.raises(runner.RenderError) as ei:
+        runner.render(SCENE.format(finish='dipole { "Marble" profile dipole sample_spacing 1e-9 }'), fork,
+                      width=8, height=8)
+    err = " ".join(ei.value.stderr.split())
+    assert "dipole: a sample spacing of 1e-09 units needs 1.2e+19 sample lines across an object 2 units wide " \
+           "(at most 5e7): give a larger sample_spacing" in err, err[-1500:]
+    assert err.count("give a larger sample_spacing") == 1
+    assert "Uncategorized error" not in err
 
 
 # ---------------------------------------------------------------- brdf_table / brdf_model options
