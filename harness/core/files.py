@@ -97,22 +97,34 @@ def pid_alive(pid: int) -> bool:
     return True
 
 
-def sweep_temps(folder: PathLike) -> int:
-    """Remove the temporary files :func:`write_whole` left in ``folder`` (not below) when its
-    process was killed: those of processes that are gone, owned by this user. Returns how many."""
-    n = 0
+def orphaned_entries(folder: PathLike, pattern: "re.Pattern[str]") -> list[os.DirEntry]:
+    """The entries of ``folder`` (not below) whose name matches ``pattern`` with the pid of a
+    process that is gone in its first group, owned by this user: what a killed harness left."""
     try:
         entries = list(os.scandir(folder))
     except OSError:
-        return 0
+        return []
+    found = []
     for ent in entries:
-        m = _TEMP_RE.match(ent.name)
+        m = pattern.fullmatch(ent.name)
         if not m or int(m.group(1)) == os.getpid() or pid_alive(int(m.group(1))):
             continue
         try:
             if ent.stat(follow_symlinks=False).st_uid == os.getuid():
-                os.unlink(ent.path)
-                n += 1
+                found.append(ent)
+        except OSError:
+            pass
+    return found
+
+
+def sweep_temps(folder: PathLike) -> int:
+    """Remove the temporary files :func:`write_whole` left in ``folder`` (not below) when its
+    process was killed: those of processes that are gone, owned by this user. Returns how many."""
+    n = 0
+    for ent in orphaned_entries(folder, _TEMP_RE):
+        try:
+            os.unlink(ent.path)
+            n += 1
         except OSError:
             pass
     return n

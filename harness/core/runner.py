@@ -38,7 +38,7 @@ from typing import Any, Callable, Iterable, Mapping, Optional, Sequence, Union
 import numpy as np
 
 from harness.core import exr
-from harness.core.files import WRITE_ERRNOS, WriteError, pid_alive
+from harness.core.files import WRITE_ERRNOS, WriteError, orphaned_entries
 from harness.core.paths import Binary, include_dirs, resolve_binary
 from harness.core.progress import bar as progress_bar
 from harness.core.povwriter import scene_to_pov
@@ -315,22 +315,11 @@ def sweep_stale_jobs(folder: Optional[Union[str, os.PathLike]] = None, prefix: s
     """Remove temporary job folders (``povjob-<pid>-*``; another ``prefix``: ``<prefix><pid>-*``)
     left in the temp folder by harness processes that were killed (their pid is gone) and
     owned by this user. Returns how many."""
-    base = Path(folder or tempfile.gettempdir())
     n = 0
-    try:
-        entries = list(os.scandir(base))
-    except OSError:
-        return 0
-    for ent in entries:
-        m = re.fullmatch(re.escape(prefix) + r"(\d+)-.+", ent.name)
-        if not m or int(m.group(1)) == os.getpid() or pid_alive(int(m.group(1))):
-            continue
-        try:
-            if ent.is_dir(follow_symlinks=False) and ent.stat(follow_symlinks=False).st_uid == os.getuid():
-                shutil.rmtree(ent.path, ignore_errors=True)
-                n += 1
-        except OSError:
-            pass
+    for ent in orphaned_entries(folder or tempfile.gettempdir(), re.compile(re.escape(prefix) + r"(\d+)-.+")):
+        if ent.is_dir(follow_symlinks=False):
+            shutil.rmtree(ent.path, ignore_errors=True)
+            n += 1
     return n
 
 
