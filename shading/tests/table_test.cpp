@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <new>
@@ -472,6 +473,36 @@ TEST(TableFile, FileHelpersRoundTrip) {
     } catch (const TableError& e) {
         EXPECT_NE(std::string(e.what()).find(path + ": offset 0: expected a readable file"), std::string::npos);
     }
+}
+
+TEST(TableFile, WritesWholeBesideTheTargetAndNamesADirectory) {
+    // write_file_bytes: a temporary file of its own in the same folder, renamed over the target;
+    // nothing else is left in the folder, and an existing file is replaced whole.
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::path(::testing::TempDir()) / "table_test_whole";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string path = (dir / "t.brdf").string();
+    write_file_bytes(path, std::vector<uint8_t>(1000, 7));
+    write_file_bytes(path, std::vector<uint8_t>(10, 9));
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    EXPECT_EQ(names, std::vector<std::string>{"t.brdf"});
+    EXPECT_EQ(read_file_bytes(path), std::vector<uint8_t>(10, 9));
+    // A directory given as a file: named as one, with what to give instead (was "9223372036854775807
+    // bytes (a directory?)" in the fork).
+    try {
+        read_file_bytes(dir.string());
+        FAIL();
+    } catch (const TableError& e) {
+        EXPECT_EQ(std::string(e.what()), dir.string() + ": offset 0: expected a regular file, found a directory (give the path "
+                                                        "of a file in it, not the folder)");
+    }
+    EXPECT_THROW(require_regular_file(dir.string(), "x.brdf"), TableError);
+    EXPECT_NO_THROW(require_regular_file(path, "x.brdf"));
+    // Writing into a missing folder fails naming the target, and leaves nothing behind.
+    EXPECT_THROW(write_file_bytes((dir / "no" / "t.brdf").string(), {1, 2}), TableError);
+    fs::remove_all(dir);
 }
 
 TEST(TableLoader, RejectsBrokenFiles) {
