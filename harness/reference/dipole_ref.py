@@ -62,6 +62,11 @@ def fdr_fit(eta: float) -> float:
     return 0.919317 - 3.4793 * e + 6.75335 * e**2 - 7.80989 * e**3 + 4.98554 * e**4 - 1.36881 * e**5
 
 
+#: Where the fits hold (within 2e-3 of the exact Fdr); the dipole's "fit" uses the exact value
+#: outside (the eta > 1 polynomial passes 1 at eta 3.87): shading/dipole.h kFdrFit{Min,Max}Eta.
+FDR_FIT_MIN_ETA, FDR_FIT_MAX_ETA = 0.5, 2.0
+
+
 def fdr_exact(eta: float, n: int = 200001) -> float:
     """Internal diffuse Fresnel reflectance by quadrature: int_0^1 Fr(mu; 1/eta) 2 mu dmu."""
     if eta == 1.0:
@@ -100,7 +105,7 @@ class Dipole:
     sigma_s_prime: float
     sigma_a: float
     eta: float = 1.0
-    fdr: str = "fit"  # "fit" (Jensen 2001) or "exact"
+    fdr: str = "fit"  # "fit" (Jensen 2001 inside [0.5, 2], exact outside) or "exact"
 
     @property
     def sigma_t_prime(self) -> float:
@@ -116,7 +121,9 @@ class Dipole:
 
     @property
     def Fdr(self) -> float:
-        return fdr_exact(self.eta) if self.fdr == "exact" else fdr_fit(self.eta)
+        if self.fdr == "exact" or not FDR_FIT_MIN_ETA <= self.eta <= FDR_FIT_MAX_ETA:
+            return fdr_exact(self.eta)
+        return fdr_fit(self.eta)
 
     @property
     def A(self) -> float:

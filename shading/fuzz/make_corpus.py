@@ -152,15 +152,16 @@ def main(brdftool, out):
     put(mdir, "bad-dim-standard-short.binary", struct.pack("<3i", 90, 90, 180) + ok[12:])
     put(mdir, "bad-inf.binary", merl((2, 2, 4), lambda c, k: math.inf if k == 5 else 1.0))
 
-    # Exact-profile tables (.ssp): checksum of the payload at 24..31, payload offset at 12..15.
+    # Exact-profile tables (.ssp, format 3): checksum of the whole file (its own 8 bytes read as
+    # zeros) at 24..31, payload offset at 12..15.
     sdir = os.path.join(out, "ssp")
     os.makedirs(sdir, exist_ok=True)
     sstool = os.path.join(os.path.dirname(brdftool), "sstool")
 
     def ssp_fix(d):
         d = bytearray(d)
-        off = struct.unpack_from("<I", d, 12)[0]
-        struct.pack_into("<Q", d, 24, fnv1a64(d[off:]))
+        struct.pack_into("<Q", d, 24, 0)
+        struct.pack_into("<Q", d, 24, fnv1a64(d))
         return bytes(d)
 
     sgood = {}
@@ -192,20 +193,21 @@ def main(brdftool, out):
         "truncated-payload": sb[:len(sb) - 5],
         "trailing-bytes": sb + b"\0\0\0\0",
         "wrong-magic": b"PVSSPROX" + sb[8:],
-        "version-1": sp("<I", 8, 1),
-        "flags-unknown": sp("<I", 36, 4),
-        "flags-slab-one-face": sp("<I", 36, 1),
-        "g-count-zero": sp("<I", 40, 0),
-        "albedo-count-huge": sp("<I", 52, 0xFFFFFFFF),
-        "radial-count-3": sp("<I", 56, 3),
-        "reserved-nonzero": sp("<I", 76, 1),
-        "rho0-nan": sp("<d", 80, math.nan),
-        "u-step-zero": sp("<d", 96, 0.0),
-        "radiance-orders-huge": sp("<d", 152, 1e9),
-        "g-out-of-range": sp("<d", 160, 1.5),
-        "payload-offset": sp("<I", 12, soff + 16),
-        "payload-bytes": sp("<Q", 16, 1 << 60),
+        "version-2": sp("<I", 8, 2, fix=True),
+        "flags-unknown": sp("<I", 36, 4, fix=True),
+        "flags-slab-one-face": sp("<I", 36, 1, fix=True),
+        "g-count-zero": sp("<I", 40, 0, fix=True),
+        "albedo-count-huge": sp("<I", 52, 0xFFFFFFFF, fix=True),
+        "radial-count-3": sp("<I", 56, 3, fix=True),
+        "reserved-nonzero": sp("<I", 76, 1, fix=True),
+        "rho0-nan": sp("<d", 80, math.nan, fix=True),
+        "u-step-zero": sp("<d", 96, 0.0, fix=True),
+        "radiance-orders-huge": sp("<d", 152, 1e9, fix=True),
+        "g-out-of-range": sp("<d", 160, 1.5, fix=True),
+        "payload-offset": sp("<I", 12, soff + 16, fix=True),
+        "payload-bytes": sp("<Q", 16, 1 << 60, fix=True),
         "checksum-wrong": sp("<Q", 24, 0),
+        "header-byte-60": sp("<I", 60, 11),  # radial nodes per decade, checksum left: format 2 missed it
         "total-nan": sp("<f", soff, math.nan, fix=True),
         "total-negative": sp("<f", soff, -0.5, fix=True),
         "profile-negative": sp("<f", len(sb) - 4, -1.0, fix=True),

@@ -2,8 +2,8 @@
 // the evaluation of what it accepts.
 //
 // Every input is read as given and with its checksum field (bytes 24..31) replaced by the
-// FNV-1a-64 of the bytes from the payload offset (bytes 12..15) to the end, so mutations of the
-// payload reach the value checks. An accepted file must serialise back to the same bytes (the
+// file's checksum (profile_file_checksum: the whole file, format 3), so mutations of the header
+// and the payload reach the field and value checks. An accepted file must serialise back to the same bytes (the
 // format has one canonical form) and give finite, non-negative profiles, totals and factors at
 // reduced albedos from 0 to 1 anywhere inside its g and eta range. Loader errors are
 // ProfileError; anything else (or a failed check) is a crash.
@@ -23,10 +23,8 @@ namespace {
 
 bool fix_ssp_checksum(const uint8_t* data, size_t size, std::vector<uint8_t>& out) {
     if (size < 32) return false;
-    const uint32_t off = uint32_t(data[12]) | uint32_t(data[13]) << 8 | uint32_t(data[14]) << 16 | uint32_t(data[15]) << 24;
-    if (off > size) return false;
     out.assign(data, data + size);
-    const uint64_t sum = fnv1a64(out.data() + off, size - off);
+    const uint64_t sum = profile_file_checksum(out.data(), size);
     for (int k = 0; k < 8; ++k) out[24 + k] = uint8_t(sum >> (8 * k));
     return true;
 }

@@ -58,6 +58,12 @@ double fresnel_diffuse_reflectance_exact(double eta) {
     return base + s * h / 3.0;
 }
 
+double fresnel_diffuse_reflectance(double eta, FdrModel fdr) {
+    if (fdr == FdrModel::JensenFit && eta >= kFdrFitMinEta && eta <= kFdrFitMaxEta)
+        return fresnel_diffuse_reflectance_fit(eta);
+    return fresnel_diffuse_reflectance_exact(eta);  // once per channel and medium, never per pixel
+}
+
 double henyey_greenstein(double cos_theta, double g) {
     double num = 1.0 - g * g;
     // |g| = 1: a delta function, no finite density anywhere (see header).
@@ -80,9 +86,8 @@ DipoleChannel DipoleChannel::make(double sigma_s_prime, double sigma_a, double e
     c.sigma_s_prime = sigma_s_prime;
     c.sigma_a = sigma_a;
     c.sigma_t_prime = sigma_s_prime + sigma_a;
-    c.Fdr = fdr == FdrModel::Exact ? fresnel_diffuse_reflectance_exact(eta)
-                                   : fresnel_diffuse_reflectance_fit(eta);
-    c.A = (1.0 + c.Fdr) / (1.0 - c.Fdr);  // Fdr < 1 for every finite eta > 0
+    c.Fdr = fresnel_diffuse_reflectance(eta, fdr);
+    c.A = (1.0 + c.Fdr) / (1.0 - c.Fdr);  // the exact Fdr < 1 for every finite eta > 0
     // No scattering (sigma_s' = 0, e.g. g -> 1 or a clear liquid) or no medium at all:
     // nothing is diffusely reflected; zr = 1/sigma_t' would be infinite in the second case.
     if (!(c.sigma_t_prime > 0.0) || !(sigma_s_prime > 0.0)) {
@@ -169,8 +174,9 @@ std::string Medium::validate() const {
         err << "mm_per_unit = " << mm_per_unit << ": expected a finite value > 0";
         return err.str();
     }
-    if (!(std::isfinite(eta) && eta > 0.0)) {
-        err << "eta = " << eta << ": expected a finite value > 0";
+    if (!(eta >= kMinEta && eta <= kMaxEta)) {
+        err << "ior (eta) = " << eta << ": expected a value in [" << kMinEta << ", " << kMaxEta
+            << "] (n_medium / n_outside)";
         return err.str();
     }
     const char* names[3] = {"r", "g", "b"};

@@ -45,6 +45,20 @@ std::string num(double v) {
     std::snprintf(buf, sizeof buf, "%.6g", v);
     return buf;
 }
+// Throws std::invalid_argument (named for the file) when the tables were made by another
+// generator version than this library's (their values would differ from what the library
+// builds; a file's generator is inside its checksum), or are slab tables given as the
+// semi-infinite ones.
+void check_identity(const ProfileTables& t, bool slabs) {
+    const std::string name = t.name.empty() ? std::string(slabs ? "slab tables" : "profile tables") : t.name;
+    if (t.generator_version != kProfileGeneratorVersion)
+        throw std::invalid_argument(name + ": built by profile generator " + std::to_string(t.generator_version) +
+                                    ", this renderer reads generator " + std::to_string(kProfileGeneratorVersion) +
+                                    "'s: rebuild it (make brdf-data, or sstool build --if-stale -o FILE)");
+    if (!slabs && t.faces != 1)
+        throw std::invalid_argument(name + ": expected semi-infinite tables (one face), found slab tables "
+                                    "(subsurface_slabs.ssp is the slab file; make brdf-data builds both)");
+}
 }  // namespace
 
 ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
@@ -53,6 +67,9 @@ ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables>
     const std::string bad = m.validate();
     if (!bad.empty()) throw std::invalid_argument("dipole medium: " + bad);
     if (!tables_) throw std::invalid_argument("exact profile: no tables");
+    // Tables another generator made, or of another kind than asked for, are never used.
+    check_identity(*tables_, false);
+    if (slab_tables_) check_identity(*slab_tables_, true);
     eta_ = m.eta;
     const ProfileBuildSettings& s = tables_->settings;
     const std::string range = ChannelProfile::range_error(*tables_, s.g.front(), m.eta, std::numeric_limits<double>::infinity());

@@ -28,6 +28,12 @@ std::string num(double v) {
     return buf;
 }
 
+std::string hex64(std::uint64_t v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
+    return buf;
+}
+
 // Critical inside cosine of a face: light inside with mu below it is totally reflected.
 double critical_cos(double eta) { return eta > 1.0 ? std::sqrt(1.0 - 1.0 / (eta * eta)) : 0.0; }
 
@@ -704,11 +710,22 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
         for (double v : r.incidence) putf32(b, v);
         for (double v : r.profile) putf32(b, v);
     }
-    const std::uint64_t bytes = b.size() - off, sum = fnv1a64(b.data() + off, bytes);
+    const std::uint64_t bytes = b.size() - off;
     for (int k = 0; k < 4; ++k) b[12 + k] = std::uint8_t(std::uint32_t(off) >> (8 * k));
     for (int k = 0; k < 8; ++k) b[16 + k] = std::uint8_t(bytes >> (8 * k));
+    const std::uint64_t sum = profile_file_checksum(b.data(), b.size());  // last: it covers the fields above
     for (int k = 0; k < 8; ++k) b[24 + k] = std::uint8_t(sum >> (8 * k));
     return b;
+}
+
+std::uint64_t profile_file_checksum(const std::uint8_t* data, std::size_t size) {
+    // fnv1a64 (table.h) over [0, 24), eight zeros, [32, size): one pass, no copy.
+    std::uint64_t h = 0xcbf29ce484222325ULL;
+    for (std::size_t i = 0; i < size; ++i) {
+        h ^= (i >= 24 && i < 32) ? 0u : data[i];
+        h *= 0x100000001b3ULL;
+    }
+    return h;
 }
 
 std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* data, std::size_t size,
@@ -723,8 +740,15 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
     const std::uint32_t version = get32(data + 8);
     if (version != kProfileFormatVersion)
         fail(8, "expected format version " + std::to_string(kProfileFormatVersion) + ", found " + std::to_string(version) +
-                    " (rebuild it with `sstool build`)");
+                    " (rebuild it: make brdf-data, or sstool build --if-stale -o FILE)");
+    // Before any field is believed: a changed header field (a count, a step) would otherwise
+    // give a table that loads and evaluates to something else.
+    const std::uint64_t sum = profile_file_checksum(data, size), stored_sum = get64(data + 24);
+    if (sum != stored_sum)
+        fail(24, "expected the file's checksum " + hex64(sum) + ", found " + hex64(stored_sum) +
+                     " (the file is damaged or was edited: rebuild it with make brdf-data, or sstool build --if-stale -o FILE)");
     auto t = std::make_shared<ProfileTables>();
+    t->name = name;
     ProfileBuildSettings& s = t->settings;
     t->generator_version = get32(data + 32);
     const std::uint32_t flags = get32(data + 36);
@@ -815,8 +839,6 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
                                                            std::to_string(size) + " bytes");
     for (std::size_t p = at; p < off; ++p)
         if (data[p] != 0) fail(p, "expected zero padding before the payload");
-    const std::uint64_t sum = fnv1a64(data + off, bytes), stored_sum = get64(data + 24);
-    if (sum != stored_sum) fail(24, "expected the payload checksum to match (the file is corrupt)");
     // Records.
     t->records.resize(nrec);
     std::size_t p = off;

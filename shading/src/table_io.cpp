@@ -1,5 +1,6 @@
 // The .brdf file format (specified in brdf_data/README.md) and whole-file helpers.
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -11,6 +12,9 @@
 #include <sstream>
 
 #include "shading/table.h"
+
+#include <fcntl.h>
+#include <unistd.h>
 
 #include "bytes.h"
 #include "format.h"
@@ -254,6 +258,11 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
         float v = rd_f32(p + 4 * k);
         if (std::isinf(v))
             throw_table_error(name, h.payload_offset + 4 * k, "a finite value at " + payload_label(g, k), float_text(v));
+        if (v > kMaxTableValue)
+            throw_table_error(name, h.payload_offset + 4 * k,
+                              "a value <= 1e+06 (1/sr) at " + payload_label(g, k) +
+                                  " (larger is a unit or scale error, or damage: brdf_data/README.md)",
+                              float_text(v));
         if (!(v >= 0)) {
             if (opt.nodata == NoDataPolicy::Reject)
                 throw_table_error(name, h.payload_offset + 4 * k,
@@ -278,18 +287,23 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
     return build_table(std::move(grid), bo);
 }
 
-std::vector<uint8_t> read_file_bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw_table_error(path, 0, "a readable file", std::strerror(errno));
+void require_regular_file(const std::string& path, const std::string& name) {
     // A directory opens too, and its "size" (seek to the end) can be 2^63 - 1 on ext4:
     // nothing but a regular file is sized from seekg/tellg.
     std::error_code ec;
     const std::filesystem::file_status st = std::filesystem::status(path, ec);
     if (ec || st.type() != std::filesystem::file_type::regular)
-        throw_table_error(path, 0, "a regular file",
+        throw_table_error(name, 0, "a regular file",
                           ec ? ec.message()
-                             : st.type() == std::filesystem::file_type::directory ? std::string("a directory")
-                                                                                    : std::string("not a regular file"));
+                             : st.type() == std::filesystem::file_type::directory
+                                   ? std::string("a directory (give the path of a file in it, not the folder)")
+                                   : std::string("not a regular file (a device, pipe or socket)"));
+}
+
+std::vector<uint8_t> read_file_bytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw_table_error(path, 0, "a readable file", std::strerror(errno));
+    require_regular_file(path, path);
     in.seekg(0, std::ios::end);
     std::streamoff len = in.tellg();
     in.seekg(0, std::ios::beg);
@@ -301,17 +315,40 @@ std::vector<uint8_t> read_file_bytes(const std::string& path) {
 }
 
 void write_file_bytes(const std::string& path, const std::vector<uint8_t>& bytes) {
-    // Write aside and rename, so an interrupted run never leaves a half table behind.
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        if (!out) throw TableError(path + ": cannot open " + tmp + " for writing: " + std::strerror(errno));
-        out.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-        if (!out.flush()) throw TableError(path + ": write failed: " + std::strerror(errno));
+    // Written whole under a name of its own in the same folder (same file system: the rename is
+    // atomic), flushed to disk, then renamed over `path`: a reader sees the old file or the new
+    // one, never a part, and two writers of the same path do not share a temporary file.
+    static std::atomic<unsigned> counter{0};
+    std::string tmp;
+    int fd = -1;
+    for (int attempt = 0; fd < 0 && attempt < 100; ++attempt) {
+        tmp = path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+        fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);  // 0666 & ~umask, like the file it replaces
+        if (fd < 0 && errno != EEXIST) break;
+    }
+    if (fd < 0) throw TableError(path + ": cannot create a temporary file beside it (" + tmp + "): " + std::strerror(errno));
+    auto fail = [&](const std::string& what) {
+        const int err = errno;
+        ::close(fd);
+        std::remove(tmp.c_str());
+        throw TableError(path + ": " + what + " " + tmp + ": " + std::strerror(err));
+    };
+    for (size_t done = 0; done < bytes.size();) {
+        const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) fail("cannot write");
+        done += size_t(n);
+    }
+    if (::fsync(fd) != 0) fail("cannot flush");
+    if (::close(fd) != 0) {
+        const int err = errno;
+        std::remove(tmp.c_str());
+        throw TableError(path + ": cannot close " + tmp + ": " + std::strerror(err));
     }
     if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        const int err = errno;
         std::remove(tmp.c_str());
-        throw TableError(path + ": cannot rename " + tmp + ": " + std::strerror(errno));
+        throw TableError(path + ": cannot rename " + tmp + " into place: " + std::strerror(err));
     }
 }
 
@@ -325,6 +362,13 @@ std::vector<uint8_t> encode_table(const BrdfTable& table) {
     std::string desc = table.info().description.substr(0, kMaxDescription);
     const uint64_t off = align16(kTableFixedHeader + desc.size());
     const std::vector<float>& v = table.values();
+    // Never write what load_table refuses (a converted measurement, a tabulated model).
+    for (size_t k = 0; k < v.size(); ++k)
+        if (v[k] > kMaxTableValue)
+            throw_table_error("table", off + 4 * k,
+                              "a value <= 1e+06 (1/sr) at " + payload_label(g, k) +
+                                  " (larger is a unit or scale error: brdf_data/README.md)",
+                              float_text(v[k]));
     std::vector<uint8_t> b(off + v.size() * 4, 0);
     std::memcpy(b.data(), kMagic, 8);
     wr_u32(b, 8, kTableVersion);

@@ -77,6 +77,64 @@ TEST(DipoleFresnel, ExactDiffuseReflectanceKnownValuesAndFitError) {
     }
 }
 
+TEST(DipoleFresnel, FitIsUsedOnlyWhereItHolds) {
+    // The eta >= 1 polynomial passes 1 at eta 3.87 (A = (1 + Fdr) / (1 - Fdr) turns negative:
+    // every dipole pixel NaN, the bug of issue 29); outside [kFdrFitMinEta, kFdrFitMaxEta] the
+    // dipole takes the exact value. Measured fit - exact: +0.0159 at 3, +0.0495 at 4, +0.364 at
+    // 10; -0.0086 at 0.1.
+    EXPECT_GT(fresnel_diffuse_reflectance_fit(3.9), 1.0);
+    EXPECT_NEAR(fresnel_diffuse_reflectance_fit(3.0) - fresnel_diffuse_reflectance_exact(3.0), 0.0159, 1e-4);
+    for (double eta : {0.1, 0.2, 0.3, 0.49, 2.01, 2.5, 3.0, 3.9, 3.99, 5.0, 10.0}) {
+        EXPECT_EQ(fresnel_diffuse_reflectance(eta, FdrModel::JensenFit), fresnel_diffuse_reflectance_exact(eta)) << eta;
+        const DipoleChannel c = DipoleChannel::make(1.0, 0.01, eta);
+        EXPECT_TRUE(c.A >= 1.0 && std::isfinite(c.A)) << eta << " A " << c.A;
+        EXPECT_TRUE(std::isfinite(c.rd_total()) && c.rd_total() > 0.0) << eta;
+    }
+    for (double eta : {0.5, 0.8, 1.3, 1.5, 2.0}) {
+        EXPECT_EQ(fresnel_diffuse_reflectance(eta, FdrModel::JensenFit), fresnel_diffuse_reflectance_fit(eta)) << eta;
+        EXPECT_EQ(fresnel_diffuse_reflectance(eta, FdrModel::Exact), fresnel_diffuse_reflectance_exact(eta)) << eta;
+    }
+    // The jumps where the dipole switches: 7e-6 at 0.5 and 5e-5 at 2 (both inside the 2e-3 the
+    // fit is trusted to).
+    EXPECT_LT(std::fabs(fresnel_diffuse_reflectance_fit(kFdrFitMinEta) - fresnel_diffuse_reflectance_exact(kFdrFitMinEta)), 2e-5);
+    EXPECT_LT(std::fabs(fresnel_diffuse_reflectance_fit(kFdrFitMaxEta) - fresnel_diffuse_reflectance_exact(kFdrFitMaxEta)), 1e-4);
+}
+
+TEST(Dipole, EveryMediumInRangeIsFiniteAndTheRestIsRefused) {
+    // The ranges of Medium::validate swept: ior 0.1 .. 10, sigma 1e-6 .. 1e6 per mm (mm_per_unit
+    // 10), g -0.99 .. 0.99: every value the renderer takes from the dipole is finite and >= 0.
+    for (double eta : {0.1, 0.3, 0.7, 1.0, 1.33, 2.0, 2.5, 3.99, 5.0, 10.0})
+        for (double ss : {1e-6, 1e-3, 1.0, 1e3, 1e6})
+            for (double sa : {0.0, 1e-6, 1.0, 1e6})
+                for (double g : {-0.99, 0.0, 0.99}) {
+                    Medium m;
+                    m.sigma_s = Rgb(ss);
+                    m.sigma_a = Rgb(sa);
+                    m.g = Rgb(g);
+                    m.eta = eta;
+                    m.mm_per_unit = 10.0;
+                    ASSERT_EQ(m.validate(), "");
+                    const Dipole d(m);
+                    const double zr = d.channel(0).empty ? 1.0 : d.channel(0).zr;
+                    for (double r : {0.0, 1e-3 * zr, zr, 10 * zr, 1e3 * zr}) {
+                        ASSERT_TRUE(finite_nonneg(d.rd(r))) << eta << " " << ss << " " << sa << " " << g << " r " << r;
+                        ASSERT_TRUE(finite_nonneg(d.rd_sample(r, zr * zr))) << eta << " " << ss << " " << sa << " " << g;
+                    }
+                    ASSERT_TRUE(finite_nonneg(d.rd_total()));
+                    ASSERT_TRUE(finite_nonneg(d.radius_containing(0.99)) || d.channel(0).sigma_tr == 0.0);
+                    const Vec3 wi = spherical_direction(0.7, 0.3), wo = spherical_direction(1.2, 2.0);
+                    ASSERT_TRUE(finite_nonneg(d.diffusion_brdf(wo, wi)));
+                    ASSERT_TRUE(finite_nonneg(d.single_scatter_brdf(wo, wi)));
+                }
+    Medium m = iso(0.5, 1.3);
+    for (double eta : {0.0, 0.09, 10.5, 1e300, kInf, std::nan("")}) {
+        m.eta = eta;
+        const std::string e = m.validate();
+        EXPECT_NE(e.find("ior (eta) = "), std::string::npos) << eta;
+        EXPECT_NE(e.find(": expected a value in [0.1, 10] (n_medium / n_outside)"), std::string::npos) << e;
+    }
+}
+
 TEST(DipoleFresnel, ExactDiffuseReflectanceObeysReciprocity) {
     // Diffuse transmittance from inside is that from outside over eta^2 (radiance / n^2 invariance):
     // 1 - Fdr(eta) = (1 - Fdr(1/eta)) / eta^2.

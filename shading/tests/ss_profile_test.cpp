@@ -41,9 +41,12 @@ const ProfileTables& small_tables() {
 // Chandrasekhar's H(1) for isotropic scattering (chandrasekhar_h.h, independent of the library).
 double h_one(double w) { return chandrasekhar_h(1.0, w); }
 
+// The checksum of the whole file (format 3), written out with the library's fnv1a64 on a copy
+// whose checksum field is zero: not profile_file_checksum, so a change of its definition shows.
 void patch_checksum(std::vector<std::uint8_t>& b) {
-    const std::uint32_t off = std::uint32_t(b[12]) | std::uint32_t(b[13]) << 8 | std::uint32_t(b[14]) << 16 | std::uint32_t(b[15]) << 24;
-    const std::uint64_t sum = fnv1a64(b.data() + off, b.size() - off);
+    std::vector<std::uint8_t> z = b;
+    for (int k = 0; k < 8; ++k) z[24 + k] = 0;
+    const std::uint64_t sum = fnv1a64(z.data(), z.size());
     for (int k = 0; k < 8; ++k) b[24 + k] = std::uint8_t(sum >> (8 * k));
 }
 
@@ -121,17 +124,18 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
         {"empty", [](auto& b) { b.clear(); }, "offset 0: expected a header of 160 bytes"},
         {"truncated header", [](auto& b) { b.resize(100); }, "offset 100: expected a header"},
         {"magic", [](auto& b) { b[0] = 'X'; }, "offset 0: expected the magic"},
-        {"version", [&](auto& b) { set32(b, 8, 1); }, "offset 8: expected format version 2, found 1"},
-        {"flags", [&](auto& b) { set32(b, 36, 4); }, "offset 36: expected flags"},
-        {"g count", [&](auto& b) { set32(b, 40, 0); }, "offset 40: expected 1 to 64 g nodes, found 0"},
-        {"albedo count", [&](auto& b) { set32(b, 52, 100000); }, "offset 52: expected 4 to 1000 albedo nodes"},
-        {"radius", [&](auto& b) { setf64(b, 80, -1.0); }, "offset 80: expected the first radius"},
-        {"g order", [&](auto& b) { setf64(b, 168, 0.0); }, "offset 168: g node 1: expected increasing values"},
-        {"eta range", [&](auto& b) { setf64(b, 176, 0.5); }, "offset 176: eta node 0: expected a value in [1, 4]"},
-        {"payload offset", [&](auto& b) { set32(b, 12, off + 16); }, "offset 12: expected the payload offset"},
-        {"payload size", [&](auto& b) { b.resize(b.size() - 4); }, "expected the file to end after"},
-        {"trailing", [&](auto& b) { b.push_back(0); }, "expected the file to end after"},
-        {"checksum", [&](auto& b) { b[off + 40] ^= 1; }, "offset 24: expected the payload checksum"},
+        {"version", [&](auto& b) { set32(b, 8, 2); }, "offset 8: expected format version 3, found 2 (rebuild it: make brdf-data"},
+        {"flags", [&](auto& b) { set32(b, 36, 4), patch_checksum(b); }, "offset 36: expected flags"},
+        {"g count", [&](auto& b) { set32(b, 40, 0), patch_checksum(b); }, "offset 40: expected 1 to 64 g nodes, found 0"},
+        {"albedo count", [&](auto& b) { set32(b, 52, 100000), patch_checksum(b); }, "offset 52: expected 4 to 1000 albedo nodes"},
+        {"radius", [&](auto& b) { setf64(b, 80, -1.0), patch_checksum(b); }, "offset 80: expected the first radius"},
+        {"g order", [&](auto& b) { setf64(b, 168, 0.0), patch_checksum(b); }, "offset 168: g node 1: expected increasing values"},
+        {"eta range", [&](auto& b) { setf64(b, 176, 0.5), patch_checksum(b); }, "offset 176: eta node 0: expected a value in [1, 4]"},
+        {"payload offset", [&](auto& b) { set32(b, 12, off + 16), patch_checksum(b); }, "offset 12: expected the payload offset"},
+        {"payload size", [&](auto& b) { b.resize(b.size() - 4), patch_checksum(b); }, "expected the file to end after"},
+        {"trailing", [&](auto& b) { b.push_back(0), patch_checksum(b); }, "expected the file to end after"},
+        {"checksum", [&](auto& b) { b[off + 40] ^= 1; }, "offset 24: expected the file's checksum"},
+        {"header field", [&](auto& b) { b[60] ^= 1; }, "offset 24: expected the file's checksum"},
         {"nan total",
          [&](auto& b) {
              const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -155,6 +159,55 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
         EXPECT_EQ(err.rfind("t.ssp: offset ", 0), 0u) << c.what << ": " << err;
     }
     EXPECT_EQ(load_error(good), "");
+}
+
+TEST(ProfileTables, EveryChangedByteIsRefused) {
+    // Format 3: the checksum covers the header too. Before, a changed byte 60 (radial nodes per
+    // decade) loaded and moved every radial node: a silently wrong image (issue 29). Every byte
+    // of the header, the axes and the padding, and every 97th of the payload, changed in turn:
+    // magic and version name themselves, every other byte is a checksum mismatch at offset 24.
+    const std::vector<std::uint8_t> good = small_tables().serialize();
+    const std::size_t off = std::size_t(good[12]) | std::size_t(good[13]) << 8;
+    std::size_t tried = 0;
+    for (std::size_t i = 0; i < good.size(); i += i < off ? 1 : 97) {
+        for (std::uint8_t bit : {std::uint8_t(1), std::uint8_t(0x80)}) {
+            std::vector<std::uint8_t> b = good;
+            b[i] ^= bit;
+            const std::string err = load_error(b);
+            ++tried;
+            const char* want = i < 8 ? "t.ssp: offset 0: expected the magic" : i < 12 ? "t.ssp: offset 8: expected format version 3"
+                                                                                      : "t.ssp: offset 24: expected the file's checksum";
+            ASSERT_EQ(err.rfind(want, 0), 0u) << "byte " << i << " ^ " << int(bit) << ": " << err;
+        }
+    }
+    EXPECT_GT(tried, 2 * off);
+    EXPECT_EQ(profile_file_checksum(good.data(), good.size()),
+              std::uint64_t(good[24]) | std::uint64_t(good[25]) << 8 | std::uint64_t(good[26]) << 16 |
+                  std::uint64_t(good[27]) << 24 | std::uint64_t(good[28]) << 32 | std::uint64_t(good[29]) << 40 |
+                  std::uint64_t(good[30]) << 48 | std::uint64_t(good[31]) << 56);
+}
+
+TEST(ProfileTables, ForeignTablesAreNotUsed) {
+    // Another generator's tables, or slab tables given as the semi-infinite ones: an error
+    // named for the file, never an image from them.
+    std::vector<std::uint8_t> b = small_tables().serialize();
+    b[32] = std::uint8_t(kProfileGeneratorVersion - 1);
+    patch_checksum(b);
+    auto old = load_profile_tables(b.data(), b.size(), "old.ssp");
+    const Medium m = Medium::from_reduced(Rgb(1.0), Rgb(0.01), 1.3);
+    try {
+        ExactProfile p(m, old);
+        FAIL() << "expected invalid_argument";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_EQ(std::string(e.what()).rfind("old.ssp: built by profile generator " + std::to_string(kProfileGeneratorVersion - 1) +
+                                                  ", this renderer reads generator " + std::to_string(kProfileGeneratorVersion) +
+                                                  "'s: rebuild it",
+                                              0),
+                  0u)
+            << e.what();
+    }
+    const std::shared_ptr<const ProfileTables> good(std::shared_ptr<const ProfileTables>(), &small_tables());
+    EXPECT_THROW(ExactProfile(m, good, old), std::invalid_argument);
 }
 
 TEST(ProfileTables, ChannelEvaluationIsConsistent) {

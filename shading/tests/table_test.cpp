@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <functional>
 #include <limits>
 #include <new>
@@ -474,6 +475,36 @@ TEST(TableFile, FileHelpersRoundTrip) {
     }
 }
 
+TEST(TableFile, WritesWholeBesideTheTargetAndNamesADirectory) {
+    // write_file_bytes: a temporary file of its own in the same folder, renamed over the target;
+    // nothing else is left in the folder, and an existing file is replaced whole.
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::path(::testing::TempDir()) / "table_test_whole";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const std::string path = (dir / "t.brdf").string();
+    write_file_bytes(path, std::vector<uint8_t>(1000, 7));
+    write_file_bytes(path, std::vector<uint8_t>(10, 9));
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+    EXPECT_EQ(names, std::vector<std::string>{"t.brdf"});
+    EXPECT_EQ(read_file_bytes(path), std::vector<uint8_t>(10, 9));
+    // A directory given as a file: named as one, with what to give instead (was "9223372036854775807
+    // bytes (a directory?)" in the fork).
+    try {
+        read_file_bytes(dir.string());
+        FAIL();
+    } catch (const TableError& e) {
+        EXPECT_EQ(std::string(e.what()), dir.string() + ": offset 0: expected a regular file, found a directory (give the path "
+                                                        "of a file in it, not the folder)");
+    }
+    EXPECT_THROW(require_regular_file(dir.string(), "x.brdf"), TableError);
+    EXPECT_NO_THROW(require_regular_file(path, "x.brdf"));
+    // Writing into a missing folder fails naming the target, and leaves nothing behind.
+    EXPECT_THROW(write_file_bytes((dir / "no" / "t.brdf").string(), {1, 2}), TableError);
+    fs::remove_all(dir);
+}
+
 TEST(TableLoader, RejectsBrokenFiles) {
     auto t = table_from(TableGeometry::isotropic(10.0), multilinear);
     const std::vector<uint8_t> good = encoded(*t);
@@ -559,6 +590,23 @@ TEST(TableLoader, RejectsBrokenFiles) {
         LoadOptions fill;
         fill.nodata = NoDataPolicy::Fill;
         expect_error_format(load_error(b, fill), off + 4 * 7);
+    }
+    // Finite but huge (1e38 rendered inf pixels, issue 29): refused above kMaxTableValue with the
+    // offset; the bound itself loads.
+    for (float big : {3.4e38f, 1e38f, 1e7f, 1.0000001e6f}) {
+        std::vector<uint8_t> b = good;
+        std::memcpy(&b[off + 4 * 9], &big, 4);
+        fix_checksum(b);
+        const std::string err = load_error(b);
+        expect_error_format(err, off + 4 * 9);
+        EXPECT_NE(err.find("expected a value <= 1e+06 (1/sr) at"), std::string::npos) << err;
+    }
+    {
+        std::vector<uint8_t> b = good;
+        const float at_bound = 1e6f;
+        std::memcpy(&b[off + 4 * 9], &at_bound, 4);
+        fix_checksum(b);
+        EXPECT_EQ(load_error(b), "(no error)");
     }
 }
 

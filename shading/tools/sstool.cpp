@@ -16,6 +16,7 @@
 #include "cli_options.h"
 #include "shading/dipole.h"
 #include "shading/ss_profile.h"
+#include "shading/table.h"  // write_file_bytes
 #include "shading/transport_mc.h"
 
 using namespace shading;
@@ -72,9 +73,7 @@ Args parse(int argc, char** argv, const std::map<std::string, bool>& known) {
 }
 
 std::vector<std::uint8_t> read_file(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) throw std::runtime_error(path + ": cannot open");
-    return std::vector<std::uint8_t>((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    return read_file_bytes(path);  // regular files only: a directory is named as one
 }
 
 std::string jnum(double v) {
@@ -123,9 +122,11 @@ int cmd_build(const Args& a) {
                 const std::vector<std::uint8_t> bytes = read_file(out);
                 auto t = load_profile_tables(bytes.data(), bytes.size(), out);
                 if (!t->stale(s)) return 0;
-                std::cerr << "sstool build: " << out << " is stale (other generator version or settings): rebuilding\n";
+                std::cerr << "sstool build: warning: " << out << " was built by generator " << t->generator_version
+                          << (t->generator_version == kProfileGeneratorVersion ? " with other settings" : "")
+                          << " than asked for: not used; rebuilding\n";
             } catch (const std::exception& e) {
-                std::cerr << "sstool build: " << e.what() << ": rebuilding\n";
+                std::cerr << "sstool build: warning: " << e.what() << ": not used; rebuilding\n";
             }
         }
     }
@@ -134,14 +135,10 @@ int cmd_build(const Args& a) {
         if (!quiet) std::cerr << "sstool build: " << line << "\n";
     });
     const std::vector<std::uint8_t> bytes = t->serialize();
-    // Check what we wrote before it replaces anything (the loader is the file's definition).
-    load_profile_tables(bytes.data(), bytes.size(), out + ".tmp");
-    {
-        std::ofstream f(out + ".tmp", std::ios::binary);
-        f.write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
-        if (!f) throw std::runtime_error(out + ".tmp: cannot write");
-    }
-    if (std::rename((out + ".tmp").c_str(), out.c_str()) != 0) throw std::runtime_error(out + ": cannot rename into place");
+    // Check what we write before it replaces anything (the loader is the file's definition),
+    // then write it whole beside the old one and rename (write_file_bytes).
+    load_profile_tables(bytes.data(), bytes.size(), out + " (as built)");
+    write_file_bytes(out, bytes);
     std::fprintf(stderr, "sstool build: %s: %zu bytes, %zu records, %.1f s\n", out.c_str(), bytes.size(), t->records.size(),
                  t->build_seconds);
     return 0;

@@ -32,7 +32,10 @@ namespace shading {
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
 constexpr std::uint32_t kProfileGeneratorVersion = 3;
-constexpr std::uint32_t kProfileFormatVersion = 2;
+// 3: the checksum (bytes 24..31) covers the whole file, header included (2 covered the payload
+// only: a changed header field went unnoticed, issue 29). Older files are refused; `sstool build
+// --if-stale` (make brdf-data) rebuilds them.
+constexpr std::uint32_t kProfileFormatVersion = 3;
 
 class ProfileError : public std::runtime_error {
 public:
@@ -91,6 +94,7 @@ public:
     int faces = 1;                   // 1: reflection; 2: reflection and transmission (slabs)
     std::vector<FaceRecord> records; // [((ig * n_eta + ie) * n_d + id) * faces + face] * albedos + k
     double build_seconds = 0;        // not stored
+    std::string name;                // the name the loader was given (messages), not stored
 
     const FaceRecord& record(int ig, int ie, int id, int face, int k) const;
     double albedo(int k) const { return 1.0 - std::exp(-(settings.u_0 + k * settings.u_step)); }
@@ -106,7 +110,11 @@ public:
     std::string describe() const;
 };
 
-// Reads a table file image; `name` prefixes every error message.
+// The file's checksum: FNV-1a-64 of every byte of the image, the checksum field (bytes 24..31)
+// read as zeros. Stored at bytes 24..31.
+std::uint64_t profile_file_checksum(const std::uint8_t* data, std::size_t size);
+// Reads a table file image; `name` prefixes every error message. Checks, in order: size of the
+// header, magic, format version, the checksum of the whole file, then every field.
 std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* data, std::size_t size,
                                                          const std::string& name);
 // Builds every node with run_transport_mc; `log` (optional) gets one line per node.

@@ -432,6 +432,12 @@ constexpr size_t kTableFixedHeader = 112;
 constexpr uint32_t kFlagFolded = 1u << 0;
 constexpr uint32_t kFlagNoDataFilled = 1u << 1;
 constexpr uint32_t kUnitsPerSr = 1;
+// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md). The sharpest lobe a 1 deg
+// (or half/difference) table resolves peaks near 1e4 (a Beckmann lobe of m = 0.001 at normal
+// incidence: 8e4); a value above 1e6 is a unit or scaling error, or damage. The bound keeps every
+// product the renderer forms (pi f cos, the finish's scale <= 1e6, the light's colour, sums over
+// lights and albedo integrals) far inside float range: 1e38 in a table rendered inf pixels.
+constexpr double kMaxTableValue = 1e6;
 
 struct TableHeader {
     uint32_t version = 0;
@@ -471,8 +477,15 @@ std::unique_ptr<BrdfTable> load_table_file(const std::string& path, const LoadOp
 std::vector<uint8_t> encode_table(const BrdfTable& table);
 void save_table_file(const BrdfTable& table, const std::string& path);
 
-// Whole-file helpers (TableError naming the path on failure).
+// Whole-file helpers (TableError naming the path on failure). read_file_bytes reads regular
+// files only (a directory is "expected a regular file, found a directory"); write_file_bytes
+// writes a temporary file of its own in the same folder, fsyncs it and renames it over `path`
+// (every file the library and its tools write goes through it).
 std::vector<uint8_t> read_file_bytes(const std::string& path);
+// Throws TableError "NAME: offset 0: expected a regular file, found a directory (give the path
+// of a file in it, not the folder)" (or what else `path` is) unless it is a regular file: for
+// readers that open files by other means (POV-Ray's parser) before they size them.
+void require_regular_file(const std::string& path, const std::string& name);
 void write_file_bytes(const std::string& path, const std::vector<uint8_t>& bytes);
 
 }  // namespace shading
