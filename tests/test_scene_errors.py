@@ -143,12 +143,13 @@ def test_a_sample_spacing_far_too_small_says_what_to_do_and_no_uncategorized_err
 
 @pytest.mark.parametrize("finish, message", [
     ('brdf_table { "good.brdf" interpolate -1 }', "interpolate must be 0 (nearest node) or 1 (trilinear), found -1"),
-    ('brdf_table { "good.brdf" scale -1 }', "brdf_table: scale must be finite and >= 0."),
-    ('brdf_table { "good.brdf" scale <1, -0.1, 1> }', "brdf_table: scale must be finite and >= 0."),
-    ('brdf_model { "lambert" scale (1e308*10)-(1e308*10) }', "brdf_model: scale must be finite and >= 0."),
+    ('brdf_table { "good.brdf" scale -1 }', "brdf_table: scale must be finite, >= 0 and at most 1e6, found"),
+    ('brdf_table { "good.brdf" scale <1, -0.1, 1> }', "brdf_table: scale must be finite, >= 0 and at most 1e6, found"),
+    ('brdf_model { "lambert" scale (1e308*10)-(1e308*10) }', "brdf_model: scale must be finite, >= 0 and at most 1e6, found"),
     ('brdf_table { "good.brdf" samples -1 }', "brdf_table: samples must be a whole number from 0 (off) to 4096, found -1."),
     ('brdf_model { "lambert" samples (1e308*10)-(1e308*10) }', "brdf_model: samples must be a whole number"),
-    ('brdf_model { "lambert" scale 1e308*10 }', "brdf_model: scale must be finite and >= 0."),
+    ('brdf_model { "lambert" scale 1e308*10 }', "brdf_model: scale must be finite, >= 0 and at most 1e6, found"),
+    ('brdf_model { "lambert rho=1" scale 3e38 }', "brdf_model: scale must be finite, >= 0 and at most 1e6, found <3e+38, 3e+38, 3e+38>"),
     ('brdf_table { "good.brdf" interpolate 0.5 }', "interpolate must be 0 (nearest node) or 1 (trilinear), found 0.5"),
 ])
 def test_bad_option(fork, table_files, finish, message):
