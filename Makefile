@@ -199,9 +199,9 @@ test: all venv brdf-data ## Build if needed, run the unit (ctest) and fast Pytho
 
 # The security and data-safety checks too slow for `make test` (.ci/run runs both): every
 # entry point x path form against the fork and Debian's stock binary (the matrix is printed),
-# then the slow security tests.
-SECURITY_SLOW_TESTS := tests/test_study_faults.py
-test-security: all venv brdf-data ## The slow security checks: the whole path matrix (fork beside stock) and the slow fault tests
+# then the slow security tests: study fault runs, the whole parameter sweep, every .ssp damage class.
+SECURITY_SLOW_TESTS := tests/test_study_faults.py tests/test_param_sweep.py tests/test_ssp_cache.py
+test-security: all venv brdf-data ## The slow security checks: the whole path matrix (fork beside stock), study fault runs, the parameter sweep, .ssp damage
 	$(PY) -m harness.reports.path_matrix --jobs $(JOBS)
 	$(PY) -m pytest -q -m slow $(SECURITY_SLOW_TESTS)
 
