@@ -54,7 +54,7 @@ TEST(Regression, ADirectoryIsNotReadAsATable) {
     for (const std::string& msg :
          {table_error_of([&] { read_file_bytes(dir); }), table_error_of([&] { load_table_file(dir); }),
           table_error_of([&] { MerlBrdf::load_file(dir); })}) {
-        EXPECT_EQ(msg, dir + ": offset 0: expected a regular file, found a directory") << msg;
+        EXPECT_EQ(msg, dir + ": offset 0: expected a regular file, found a directory (give the path of a file in it, not the folder)") << msg;
     }
     const std::string missing = dir + "no-such-file.brdf";
     const std::string msg = table_error_of([&] { read_file_bytes(missing); });
