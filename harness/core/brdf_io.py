@@ -68,7 +68,7 @@ FLAG_FOLDED, FLAG_NODATA_FILLED = 1, 2
 #: The largest value a table may hold, 1/sr: the loader's kMaxTableValue (shading/table.h,
 #: brdf_data/README.md "Largest value"). Above it (and at +-Inf) a value is an error in every
 #: layout and under every no-data policy; a sharp lobe peaks far below it, and 1e38 rendered inf.
-MAX_VALUE = 1e6
+MAX_VALUE = 1e10
 
 _REMAKE = ("The file is not a table this reader can use: remake it with `brdftool tabulate`, `convert` "
            "or harness.core.brdf_io.write_brdf (format: brdf_data/README.md).")
@@ -147,7 +147,7 @@ def read_table(path: PathLike, verify: bool = True, nodata: str = "reject") -> T
 
     ``verify`` checks the payload checksum (pure Python, about 0.1 s per MB). ``nodata``:
     "reject" (the loader's default) refuses NaN and negative values; "keep" returns them as NaN
-    (a sparse table from :func:`write_brdf`). Inf and values above :data:`MAX_VALUE` (1e6 1/sr)
+    (a sparse table from :func:`write_brdf`). Inf and values above :data:`MAX_VALUE` (1e10 1/sr)
     are always refused."""
     if nodata not in ("reject", "keep"):
         raise ValueError(f"nodata must be 'reject' or 'keep', not {nodata!r}")

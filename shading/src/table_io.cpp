@@ -260,7 +260,7 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
             throw_table_error(name, h.payload_offset + 4 * k, "a finite value at " + payload_label(g, k), float_text(v));
         if (v > kMaxTableValue)
             throw_table_error(name, h.payload_offset + 4 * k,
-                              "a value <= 1e+06 (1/sr) at " + payload_label(g, k) +
+                              "a value <= 1e+10 (1/sr) at " + payload_label(g, k) +
                                   " (larger is a unit or scale error, or damage: brdf_data/README.md)",
                               float_text(v));
         if (!(v >= 0)) {
@@ -366,7 +366,7 @@ std::vector<uint8_t> encode_table(const BrdfTable& table) {
     for (size_t k = 0; k < v.size(); ++k)
         if (v[k] > kMaxTableValue)
             throw_table_error("table", off + 4 * k,
-                              "a value <= 1e+06 (1/sr) at " + payload_label(g, k) +
+                              "a value <= 1e+10 (1/sr) at " + payload_label(g, k) +
                                   " (larger is a unit or scale error: brdf_data/README.md)",
                               float_text(v[k]));
     std::vector<uint8_t> b(off + v.size() * 4, 0);

@@ -432,12 +432,13 @@ constexpr size_t kTableFixedHeader = 112;
 constexpr uint32_t kFlagFolded = 1u << 0;
 constexpr uint32_t kFlagNoDataFilled = 1u << 1;
 constexpr uint32_t kUnitsPerSr = 1;
-// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md). The sharpest lobe a 1 deg
-// (or half/difference) table resolves peaks near 1e4 (a Beckmann lobe of m = 0.001 at normal
-// incidence: 8e4); a value above 1e6 is a unit or scaling error, or damage. The bound keeps every
+// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md). A sharp lobe at normal
+// incidence peaks near 1e4 (Beckmann m = 0.001: 8e4), but a conductor's 1/(4 cos_i cos_o) near
+// grazing goes further (a half/difference table of Beckmann m = 0.02 holds 2.6e6 at
+// theta_d = 89.6 deg); a value above 1e10 is a unit or scaling error, or damage. The bound keeps every
 // product the renderer forms (pi f cos, the finish's scale <= 1e6, the light's colour, sums over
 // lights and albedo integrals) far inside float range: 1e38 in a table rendered inf pixels.
-constexpr double kMaxTableValue = 1e6;
+constexpr double kMaxTableValue = 1e10;
 
 struct TableHeader {
     uint32_t version = 0;
