@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from harness.core import runner, tables
+from harness.core.brdf_io import fnv1a64
 
 SCENE = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}
@@ -154,12 +155,6 @@ def test_out_of_range_is_refused_with_the_range(fork, body, message):
 
 
 # ---------------------------------------------------------------- tables
-
-def fnv1a64(data: bytes) -> int:
-    h = 0xCBF29CE484222325
-    for b in data:
-        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
-    return h
 
 
 @pytest.fixture(scope="module")

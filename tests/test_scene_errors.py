@@ -21,6 +21,7 @@ import struct
 import pytest
 
 from harness.core import runner, tables
+from harness.core.brdf_io import fnv1a64
 
 SCENE = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}
@@ -30,12 +31,6 @@ sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ {finish} }} }}
 """
 LINE = 5
 
-
-def fnv1a64(data: bytes) -> int:
-    h = 0xCBF29CE484222325
-    for b in data:
-        h = ((h ^ b) * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
-    return h
 
 
 @pytest.fixture(scope="module")

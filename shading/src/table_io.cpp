@@ -94,6 +94,14 @@ std::string payload_label(const TableGeometry& g, uint64_t value_index) {
     s << " deg, channel " << value_index % C;
     return s.str();
 }
+
+// What a value above kMaxTableValue should have been, for the loader and the writer alike.
+std::string within_bound(const TableGeometry& g, uint64_t value_index, const char* also) {
+    char bound[32];
+    std::snprintf(bound, sizeof bound, "%g", kMaxTableValue);
+    return std::string("a value <= ") + bound + " (1/sr) at " + payload_label(g, value_index) +
+           " (larger is a unit or scale error" + also + ": brdf_data/README.md)";
+}
 std::string float_text(float v) {
     if (std::isnan(v)) return "nan";
     if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
@@ -259,10 +267,7 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
         if (std::isinf(v))
             throw_table_error(name, h.payload_offset + 4 * k, "a finite value at " + payload_label(g, k), float_text(v));
         if (v > kMaxTableValue)
-            throw_table_error(name, h.payload_offset + 4 * k,
-                              "a value <= 1e+10 (1/sr) at " + payload_label(g, k) +
-                                  " (larger is a unit or scale error, or damage: brdf_data/README.md)",
-                              float_text(v));
+            throw_table_error(name, h.payload_offset + 4 * k, within_bound(g, k, ", or damage"), float_text(v));
         if (!(v >= 0)) {
             if (opt.nodata == NoDataPolicy::Reject)
                 throw_table_error(name, h.payload_offset + 4 * k,
@@ -365,10 +370,7 @@ std::vector<uint8_t> encode_table(const BrdfTable& table) {
     // Never write what load_table refuses (a converted measurement, a tabulated model).
     for (size_t k = 0; k < v.size(); ++k)
         if (v[k] > kMaxTableValue)
-            throw_table_error("table", off + 4 * k,
-                              "a value <= 1e+10 (1/sr) at " + payload_label(g, k) +
-                                  " (larger is a unit or scale error: brdf_data/README.md)",
-                              float_text(v[k]));
+            throw_table_error("table", off + 4 * k, within_bound(g, k, ""), float_text(v[k]));
     std::vector<uint8_t> b(off + v.size() * 4, 0);
     std::memcpy(b.data(), kMagic, 8);
     wr_u32(b, 8, kTableVersion);
