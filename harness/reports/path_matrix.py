@@ -34,17 +34,18 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import struct
 import subprocess
 import sys
 import tempfile
 import time
-import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional, Sequence
 
+import numpy as np
+
+from harness.core import exr
 from harness.core.paths import Binary, fork_binary, stock_binary
 
 #: A render that takes longer than this hangs (a symlink loop in upstream's canonicaliser).
@@ -174,15 +175,6 @@ ENTRIES: list[Entry] = [
 ]
 
 
-def _png(path: Path) -> None:
-    """A 2x2 grey PNG, written with zlib (no image library needed)."""
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
-    raw = b"".join(b"\x00" + bytes([128, 200]) for _ in range(2))
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 2, 2, 8, 0, 0, 0, 0))
-                     + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
-
-
 def _stage_readable(folder: Path, name: str, table: Optional[Path]) -> None:
     path = folder / name
     if name.endswith(".inc"):
@@ -190,7 +182,7 @@ def _stage_readable(folder: Path, name: str, table: Optional[Path]) -> None:
     elif name.endswith(".txt"):
         path.write_text("1,\n")
     elif name.endswith(".png"):
-        _png(path)
+        exr.write_png_preview(path, np.full((2, 2, 3), 0.5, dtype=np.float32))  # a grey 2x2 image
     elif name.endswith(".ttf") and FONT.is_file():
         shutil.copyfile(FONT, path)
     elif name.endswith(".brdf") and table is not None:
