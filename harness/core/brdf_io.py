@@ -21,7 +21,10 @@ from typing import Union
 
 import numpy as np
 
+from harness.core.files import write_whole
+
 MAGIC = b"PVBRDF\0\0"
+
 PathLike = Union[str, Path]
 
 
@@ -349,9 +352,7 @@ def write_brdf(path: PathLike, f: np.ndarray, description: str = "", nodata_fill
     head += struct.pack("<3Q2I", len(payload), fnv1a64(payload), nodata_filled, len(desc), 0)
     data = head + desc + b"\0" * (off - 112 - len(desc)) + payload
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
+    write_whole(path, data)
     return path
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence
 
 from harness.core import runner, tables
+from harness.core.files import write_whole
 from harness.core.paths import cache_dir
 from harness.core.scenes import DistantLight, SphereScene
 
@@ -189,9 +190,7 @@ def ensure_costs(path: Path = COSTS_PATH, force: bool = False, repeat: int = 5,
     t0 = time.perf_counter()
     costs = measure(repeat, log)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(format_costs(costs, f"measured {time.strftime('%Y-%m-%d')} in {time.perf_counter() - t0:.0f} s"))
-    tmp.replace(path)
+    write_whole(path, format_costs(costs, f"measured {time.strftime('%Y-%m-%d')} in {time.perf_counter() - t0:.0f} s"))
     return path
 
 
