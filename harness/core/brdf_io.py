@@ -61,7 +61,7 @@ class TableFormatError(ValueError):
         super().__init__(f"{path}: offset {offset}: expected {expected}, found {found}. {todo}")
 
 
-#: The loader's limits (shading/src/table_io.cpp and table.cpp; brdf_data/README.md, "Header").
+#: The loader's limits (shading/src/tables/table_io.cpp and table.cpp; brdf_data/README.md, "Header").
 HEADER_BYTES = 112
 MAX_DESCRIPTION = 4096
 MAX_PAYLOAD_BYTES = 2 << 30           # the C++ loader's default (LoadOptions::max_payload_bytes)

@@ -1,7 +1,7 @@
 """Numpy reference of the dipole subsurface formulas (Jensen et al. 2001) and of exact
 transport results used to check them.
 
-Mirrors shading/include/shading/dipole.h (same names, same conventions; see shading/DIPOLE.md):
+Mirrors shading/include/shading/subsurface/dipole.h (same names, same conventions; see shading/DIPOLE.md):
 eta = n_medium / n_outside, coefficients in 1/length, radii in the same length, Rd(r) per
 length^2. Everything is a pure numpy function of the medium constants, vectorised where it
 makes sense, so harness code can compute expected images and tables without the C++ library.

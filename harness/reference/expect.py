@@ -2,7 +2,7 @@
 
 POV-Ray 3.7 units (no 1/pi anywhere): a light's colour ``E`` is the irradiance on a surface
 facing it, and a pixel is pi x radiance. For a BRDF ``f(wo, wi)`` in 1/sr (cos(theta_i)
-*excluded*, as in ``shading/include/shading/brdf.h``) one light contributes
+*excluded*, as in ``shading/include/shading/brdf/brdf.h``) one light contributes
 ``pi f cos(theta_i) E``, so a Lambert BRDF rho/pi renders exactly like ``diffuse rho``.
 
 The stock terms reproduce ``source/backend/render/trace.cpp`` of 3.7.0.10 exactly:

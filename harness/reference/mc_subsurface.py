@@ -1,6 +1,6 @@
 """Monte Carlo photon migration in a homogeneous layer (semi-infinite or a slab): the independent
-reference for the dipole (shading/include/shading/dipole.h, harness/reference/dipole_ref.py) and for
-the exact profiles of the library (shading/include/shading/ss_profile.h), sharing no code with either.
+reference for the dipole (shading/include/shading/subsurface/dipole.h, harness/reference/dipole_ref.py) and for
+the exact profiles of the library (shading/include/shading/subsurface/ss_profile.h), sharing no code with either.
 
 Model (the assumptions of both, and nothing of their mathematics):
   * medium 0 <= z <= thickness (z is depth; thickness = inf: semi-infinite), flat faces, the same

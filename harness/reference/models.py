@@ -2,7 +2,7 @@
 
 This is the harness's *independent* reference for ``brdf_model`` finishes: it shares no code
 with ``shading/`` (C++), only the spec grammar (``"<model> key=value ..."``, see
-``shading/include/shading/model_spec.h`` and ``shading/MODELS.md``) and the conventions:
+``shading/include/shading/brdf/model_spec.h`` and ``shading/MODELS.md``) and the conventions:
 
 * local frame: normal +z, tangent +x; ``wo`` towards the viewer, ``wi`` towards the light;
 * ``f(wo, wi)`` in 1/sr, cos(theta_i) *excluded*, 0 when either direction is below the surface;

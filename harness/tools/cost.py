@@ -116,7 +116,7 @@ def format_costs(costs: Mapping[str, float], note: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-#: RATIO's range and form, as brdftool's parser (shading/src/fit.cpp, parse_costs) has them.
+#: RATIO's range and form, as brdftool's parser (shading/src/fit/fit.cpp, parse_costs) has them.
 MIN_RATIO, MAX_RATIO = 1e-6, 1e6
 _DECIMAL = re.compile(rb"\+?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _SPACE = b" \t\r\v\f"
@@ -140,7 +140,7 @@ def _shown(w: bytes) -> str:
 
 def parse_costs(data: bytes, path: Path) -> dict[str, float]:
     """The bytes of a cost file as a dict, by brdftool's grammar (``parse_costs`` in
-    shading/src/fit.cpp): lines end at '\\n', '#' starts a comment, words are separated by ASCII
+    shading/src/fit/fit.cpp): lines end at '\\n', '#' starts a comment, words are separated by ASCII
     spaces; the last word is RATIO (a decimal number in [MIN_RATIO, MAX_RATIO]), the others,
     printable ASCII joined by one space, FAMILY. A later line for the same FAMILY wins."""
     out: dict[str, float] = {}

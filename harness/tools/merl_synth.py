@@ -5,7 +5,7 @@
 The repository ships no MERL measurement; this makes a file in exactly MERL's layout so that
 ``brdftool convert`` and everything after it can be tried: three int32 dimensions (90, 90,
 180), then three channel planes (R, G, B) of doubles over (theta_h, theta_d, phi_d) bins,
-each value f / scale with MERL's scales 1/1500, 1.15/1500, 1.66/1500 (``shading/src/merl.cpp``).
+each value f / scale with MERL's scales 1/1500, 1.15/1500, 1.66/1500 (``shading/src/tables/merl.cpp``).
 Bins are sampled at their centres: theta_h = ((i + 0.5) / 90)^2 * 90 deg (MERL's square-root
 spacing), theta_d = (j + 0.5) deg, phi_d = (k + 0.5) deg, with phi_h = 0. Bins whose incident
 or outgoing direction is below the horizon hold -1, MERL's no-data marker.

@@ -5,7 +5,7 @@
 1. The render costs (:mod:`harness.tools.cost`) are measured once into ``build/costs.txt``
    (``--no-measure`` uses whatever is there, or brdftool's built-in order).
 2. ``brdftool recommend TABLE --tsv`` fits every family and ranks them by the table error
-   (cos-weighted rel-RMSE over the table's nodes, see ``shading/include/shading/fit.h``)
+   (cos-weighted rel-RMSE over the table's nodes, see ``shading/include/shading/fit/fit.h``)
    against the cost; it names the cheapest family within ``--tol`` or "keep the table".
 3. The reference render: a sphere under three distant lights (head-on, 45 deg and a grazing
    80 deg light), orthographic, 128x128, rendered by the fork once with ``brdf_table`` of the

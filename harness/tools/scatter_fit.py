@@ -4,7 +4,7 @@ A translucent sample lit by a narrow beam (or a point) glows around the entry po
 radial exitance Rd(r) (per unit entering power, per area). Given the relative index eta,
 :func:`fit_profile` finds the reduced scattering coefficient sigma_s' and the absorption
 coefficient sigma_a whose dipole (Jensen et al. 2001; :class:`harness.reference.dipole_ref.Dipole`, the
-numpy mirror of ``shading/include/shading/dipole.h``) best matches the profile:
+numpy mirror of ``shading/include/shading/subsurface/dipole.h``) best matches the profile:
 
 * the model at each point is the dipole's Rd(r) or, for binned data (``r_edges`` given, as
   :mod:`harness.reference.mc_subsurface` tallies), the mean of Rd over each annulus (closed form);

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "fuzz_util.h"
-#include "shading/fit.h"
+#include "shading/fit/fit.h"
 
 using namespace shading;
 

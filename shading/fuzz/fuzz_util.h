@@ -6,7 +6,8 @@
 #include <cstdlib>
 #include <vector>
 
-#include "shading/table.h"
+#include "shading/core/bytes.h"
+#include "shading/tables/table.h"
 
 // A failed invariant is a crash: libFuzzer saves the input.
 inline void fuzz_check(bool ok, const char* what) {

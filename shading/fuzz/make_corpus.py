@@ -216,7 +216,7 @@ def main(brdftool, out):
     for name, data in sbad.items():
         put(sdir, "bad-" + name + ".ssp", data)
 
-    # Cost files: FAMILY RATIO lines (shading/src/fit.cpp, parse_costs).
+    # Cost files: FAMILY RATIO lines (shading/src/fit/fit.cpp, parse_costs).
     cdir = os.path.join(out, "costs")
     os.makedirs(cdir, exist_ok=True)
     costs = {

@@ -7,7 +7,7 @@
 #include <cstdint>
 
 #include "fuzz_util.h"
-#include "shading/merl.h"
+#include "shading/tables/merl.h"
 
 using namespace shading;
 

@@ -14,8 +14,8 @@
 #include <vector>
 
 #include "fuzz_util.h"
-#include "shading/ss_profile.h"
-#include "shading/table.h"  // fnv1a64
+#include "shading/subsurface/ss_profile.h"
+#include "shading/core/bytes.h"
 
 using namespace shading;
 

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "fuzz_util.h"
-#include "shading/table.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

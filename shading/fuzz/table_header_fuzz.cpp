@@ -10,7 +10,7 @@
 #include <cstdint>
 
 #include "fuzz_util.h"
-#include "shading/table.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

@@ -12,8 +12,8 @@
 #include <random>
 #include <stdexcept>
 
-#include "shading/dipole.h"
-#include "shading/media_presets.h"
+#include "shading/subsurface/dipole.h"
+#include "shading/subsurface/media_presets.h"
 
 using namespace shading;
 

@@ -10,9 +10,10 @@
 #include <map>
 #include <random>
 
-#include "shading/fit.h"
-#include "shading/model_spec.h"
-#include "shading/table.h"
+#include "shading/core/bytes.h"
+#include "shading/fit/fit.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

@@ -1,6 +1,6 @@
 #include <gtest/gtest.h>
 
-#include "shading/vec.h"
+#include "shading/core/vec.h"
 
 using namespace shading;
 

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <complex>
 
-#include "shading/fresnel.h"
+#include "shading/brdf/fresnel.h"
 
 using namespace shading;
 

@@ -10,7 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "shading/locate.h"
+#include "shading/core/locate.h"
 
 using shading::explain_unopened;
 

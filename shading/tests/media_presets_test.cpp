@@ -5,7 +5,7 @@
 #include <set>
 #include <stdexcept>
 
-#include "shading/media_presets.h"
+#include "shading/subsurface/media_presets.h"
 
 using namespace shading;
 

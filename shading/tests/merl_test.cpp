@@ -18,10 +18,10 @@
 #include <string>
 #include <vector>
 
-#include "shading/merl.h"
-#include "shading/model_spec.h"
-#include "shading/models.h"
-#include "shading/table.h"
+#include "shading/tables/merl.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/brdf/models.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

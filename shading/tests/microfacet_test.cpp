@@ -9,9 +9,9 @@
 #include <random>
 #include <vector>
 
-#include "shading/microfacet.h"
-#include "shading/model_spec.h"
-#include "shading/models.h"
+#include "shading/brdf/microfacet.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/brdf/models.h"
 #include "sampling_check.h"
 
 using namespace shading;

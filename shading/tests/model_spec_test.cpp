@@ -3,7 +3,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "shading/model_spec.h"
+#include "shading/brdf/model_spec.h"
 
 using namespace shading;
 

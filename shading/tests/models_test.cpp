@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "shading/microfacet.h"
-#include "shading/model_spec.h"
-#include "shading/models.h"
+#include "shading/brdf/microfacet.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/brdf/models.h"
 
 using namespace shading;
 

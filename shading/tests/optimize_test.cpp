@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "shading/optimize.h"
+#include "shading/core/optimize.h"
 
 using namespace shading;
 

@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "shading/merl.h"
-#include "shading/table.h"
+#include "shading/tables/merl.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "shading/vec.h"
+#include "shading/core/vec.h"
 
 namespace shading_test {
 

@@ -6,8 +6,8 @@
 #include <functional>
 #include <vector>
 
-#include "shading/slab.h"
-#include "shading/subsurface.h"
+#include "shading/subsurface/slab.h"
+#include "shading/subsurface/subsurface.h"
 
 using namespace shading;
 

@@ -11,11 +11,11 @@
 #include <vector>
 
 #include "chandrasekhar_h.h"
-#include "shading/finish.h"
-#include "shading/radial_profile.h"
-#include "shading/ss_profile.h"
-#include "shading/subsurface.h"
-#include "shading/table.h"  // fnv1a64
+#include "shading/finish/finish.h"
+#include "shading/subsurface/radial_profile.h"
+#include "shading/subsurface/ss_profile.h"
+#include "shading/subsurface/subsurface.h"
+#include "shading/core/bytes.h"
 
 using namespace shading;
 

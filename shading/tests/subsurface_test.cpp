@@ -9,9 +9,9 @@
 #include <thread>
 #include <vector>
 
-#include "shading/finish.h"
-#include "shading/media_presets.h"
-#include "shading/subsurface.h"
+#include "shading/finish/finish.h"
+#include "shading/subsurface/media_presets.h"
+#include "shading/subsurface/subsurface.h"
 
 using namespace shading;
 

@@ -11,11 +11,12 @@
 #include <random>
 #include <regex>
 
-#include "shading/finish.h"
-#include "shading/merl.h"
-#include "shading/model_spec.h"
-#include "shading/models.h"
-#include "shading/table.h"
+#include "shading/core/bytes.h"
+#include "shading/finish/finish.h"
+#include "shading/tables/merl.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/brdf/models.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "sampling_check.h"
-#include "shading/finish.h"
-#include "shading/model_spec.h"
-#include "shading/table.h"
-#include "shading/table_sampler.h"
+#include "shading/finish/finish.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/tables/table.h"
+#include "shading/tables/table_sampler.h"
 
 using namespace shading;
 using namespace shading_test;

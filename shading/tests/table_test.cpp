@@ -14,8 +14,9 @@
 #include <regex>
 #include <thread>
 
-#include "shading/models.h"
-#include "shading/table.h"
+#include "shading/core/bytes.h"
+#include "shading/brdf/models.h"
+#include "shading/tables/table.h"
 
 // The replacement operators below pair malloc with free on purpose; GCC's heuristic
 // cannot see that both sides are replaced.

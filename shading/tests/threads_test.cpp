@@ -12,9 +12,9 @@
 #include <thread>
 #include <vector>
 
-#include "shading/finish.h"
-#include "shading/models.h"
-#include "shading/table.h"
+#include "shading/finish/finish.h"
+#include "shading/brdf/models.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "chandrasekhar_h.h"
-#include "shading/transport_mc.h"
+#include "shading/subsurface/transport_mc.h"
 
 using namespace shading;
 

@@ -23,11 +23,11 @@
 #include <unistd.h>
 
 #include "cli_options.h"
-#include "shading/finish.h"
-#include "shading/fit.h"
-#include "shading/merl.h"
-#include "shading/model_spec.h"
-#include "shading/table.h"
+#include "shading/finish/finish.h"
+#include "shading/fit/fit.h"
+#include "shading/tables/merl.h"
+#include "shading/brdf/model_spec.h"
+#include "shading/tables/table.h"
 
 using namespace shading;
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Generate the compiled-in media preset table of shading/src/media_presets.cpp from the CSV.
+"""Generate the compiled-in media preset table of shading/src/subsurface/media_presets.cpp from the CSV.
 
 Usage:
     python3 shading/tools/gen_presets.py [--csv PATH] [--check]

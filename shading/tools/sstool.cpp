@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "cli_options.h"
-#include "shading/dipole.h"
-#include "shading/ss_profile.h"
-#include "shading/table.h"  // write_file_bytes
-#include "shading/transport_mc.h"
+#include "shading/subsurface/dipole.h"
+#include "shading/subsurface/ss_profile.h"
+#include "shading/tables/table.h"  // write_file_bytes
+#include "shading/subsurface/transport_mc.h"
 
 using namespace shading;
 

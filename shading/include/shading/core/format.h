@@ -1,0 +1,26 @@
+// Internal: number formatting for describe() strings, specs and error messages.
+#pragma once
+
+#include <cstdio>
+#include <string>
+
+#include "shading/core/vec.h"
+
+namespace shading {
+namespace detail {
+
+// `digits` significant digits, shortest form (printf's %g: "0.3", "1e-05"); 17 digits
+// round-trip a double exactly, 9 a float. The one number formatter of the library.
+inline std::string fmt(double v, int digits = 6) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+    return buf;
+}
+// A grey colour as one number, otherwise "r,g,b" (the form model specs accept).
+inline std::string fmt(const Rgb& c, int digits = 6) {
+    if (c.r == c.g && c.g == c.b) return fmt(c.r, digits);
+    return fmt(c.r, digits) + "," + fmt(c.g, digits) + "," + fmt(c.b, digits);
+}
+
+}  // namespace detail
+}  // namespace shading

@@ -1,0 +1,554 @@
+// Monte Carlo photon migration without absorption, reweighted for a grid of albedos; see
+// transport_mc.h for the model.
+#include "shading/subsurface/transport_mc.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "shading/brdf/fresnel.h"
+#include "shading/core/vec.h"
+
+namespace shading {
+
+// ---------------------------------------------------------------- radial bins
+
+double RadialBins::inner(int b) const { return b <= 0 ? 0.0 : rho_0 * std::pow(10.0, double(b - 1) / per_decade); }
+double RadialBins::outer(int b) const { return rho_0 * std::pow(10.0, double(b) / per_decade); }
+double RadialBins::area(int b) const { return kPi * (sqr(outer(b)) - sqr(inner(b))); }
+int RadialBins::index(double rho) const {
+    if (!(rho >= rho_0)) return 0;  // also rho = 0
+    const double t = std::log10(rho / rho_0) * per_decade;
+    return t < count - 1 ? 1 + int(t) : count;
+}
+
+std::vector<double> McSettings::radiance_cosines() const {
+    std::vector<double> mu(std::max(0, radiance_nodes));
+    // Chebyshev-Radau nodes: cosine-spaced, the last exactly 1 (normal exit, measured rather than
+    // extrapolated), the first above 0 (the estimate's 1/mu grows at grazing).
+    for (int j = 0; j < radiance_nodes; ++j) mu[j] = 0.5 * (1.0 - std::cos(kPi * (j + 0.5) / (radiance_nodes - 0.5)));
+    return mu;
+}
+
+std::string McSettings::validate() const {
+    if (!(g >= 0.0 && g < 1.0)) return "g = " + std::to_string(g) + ": expected a value in [0, 1)";
+    if (eta.empty() || eta.size() > std::size_t(kMaxEtas)) return "eta: expected 1 to " + std::to_string(kMaxEtas) + " values";
+    for (double e : eta)
+        if (!(e >= 1.0 && e <= 4.0)) return "eta = " + std::to_string(e) + ": expected a value in [1, 4]";
+    if (!(thickness > 0)) return "thickness = " + std::to_string(thickness) + ": expected > 0 mean free paths (inf: semi-infinite)";
+    if (!(cos_inside > 0 && cos_inside <= 1.0)) return "cos_inside: expected a value in (0, 1]";
+    if (photons == 0) return "photons: expected at least 1";
+    if (short_photons > 0 && short_orders < 1) return "short_orders: expected >= 1 with short photons";
+    if (!(roulette_order >= 1.0)) return "roulette_order: expected >= 1";
+    if (albedos.empty()) return "albedos: expected at least one";
+    for (std::size_t k = 0; k < albedos.size(); ++k) {
+        if (!(albedos[k] >= 0.0 && albedos[k] <= 1.0)) return "albedos: expected values in [0, 1]";
+        if (k > 0 && !(albedos[k] > albedos[k - 1])) return "albedos: expected strictly increasing values";
+    }
+    if (!(bins.rho_0 > 0 && std::isfinite(bins.rho_0)) || bins.per_decade < 1 || bins.count < 2 || bins.count > 100000)
+        return "radial bins: expected rho_0 > 0, per_decade >= 1, 2 <= count <= 100000";
+    if (angle_bins < 1 || angle_bins > 100000) return "angle_bins: expected 1 .. 100000";
+    if (radiance_orders < 0 || radiance_orders > 1000000 || radiance_nodes < 1 || radiance_nodes > 32)
+        return "radiance: expected 0 .. 1000000 orders and 1 .. 32 nodes";
+    if (radiance_orders > 0 && (cos_inside != 1.0 || !radial))
+        return "radiance: the estimate needs normal incidence (cos_inside 1) and the radial tallies";
+    return "";
+}
+
+namespace {
+
+// ---------------------------------------------------------------- random numbers
+// splitmix64 (Steele, Lea, Flood 2014) to seed xoshiro256** (Blackman, Vigna 2018).
+std::uint64_t splitmix64(std::uint64_t& x) {
+    std::uint64_t z = (x += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+}
+struct Rng {
+    std::uint64_t s[4];
+    Rng(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) {
+        std::uint64_t x = seed ^ (stream * 0xd1b54a32d192ed03ULL) ^ (index * 0x8cb92ba72f3d8dd7ULL);
+        for (auto& v : s) v = splitmix64(x);
+    }
+    static std::uint64_t rotl(std::uint64_t v, int k) { return (v << k) | (v >> (64 - k)); }
+    std::uint64_t next() {
+        const std::uint64_t r = rotl(s[1] * 5, 7) * 9, t = s[1] << 17;
+        s[2] ^= s[0];
+        s[3] ^= s[1];
+        s[1] ^= s[2];
+        s[0] ^= s[3];
+        s[2] ^= t;
+        s[3] = rotl(s[3], 45);
+        return r;
+    }
+    double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+};
+
+// ---------------------------------------------------------------- tallies
+
+struct FaceTally {
+    std::vector<double> ballistic, single, multi, single_sq, multi_sq, radial, radial_sq, arrivals;
+    std::vector<double> ne;  // next-event radiance by order: ne[n * nodes + j], n <= radiance_orders
+    void init(std::size_t K, int nb, int na, bool radial_on, int ne_orders, int ne_nodes) {
+        ne.assign(ne_orders > 0 ? std::size_t(ne_orders + 1) * ne_nodes : 0, 0.0);
+        ballistic.assign(K, 0.0);
+        single.assign(K, 0.0);
+        multi.assign(K, 0.0);
+        single_sq.assign(K, 0.0);
+        multi_sq.assign(K, 0.0);
+        radial.assign(radial_on ? K * nb : 0, 0.0);
+        radial_sq.assign(radial_on ? K * nb : 0, 0.0);
+        arrivals.assign(radial_on ? K * na : 0, 0.0);
+    }
+    void add(const FaceTally& o) {
+        auto acc = [](std::vector<double>& a, const std::vector<double>& b) {
+            for (std::size_t i = 0; i < a.size(); ++i) a[i] += b[i];
+        };
+        acc(ballistic, o.ballistic);
+        acc(single, o.single);
+        acc(multi, o.multi);
+        acc(single_sq, o.single_sq);
+        acc(multi_sq, o.multi_sq);
+        acc(radial, o.radial);
+        acc(radial_sq, o.radial_sq);
+        acc(arrivals, o.arrivals);
+        acc(ne, o.ne);
+    }
+    void clear_squares() {
+        std::fill(single_sq.begin(), single_sq.end(), 0.0);
+        std::fill(multi_sq.begin(), multi_sq.end(), 0.0);
+    }
+};
+// face [0] top, [1] bottom; one per eta
+struct Tally {
+    std::vector<FaceTally> face[2];
+    std::uint64_t steps = 0;
+    bool is_short = false;
+    void init(const McSettings& s) {
+        for (auto& f : face) {
+            f.resize(s.eta.size());
+            for (FaceTally& t : f)
+                t.init(s.albedos.size(), s.bins.count, s.angle_bins, s.radial, s.radiance_orders, s.radiance_nodes);
+        }
+    }
+    void add(const Tally& o) {
+        for (int f = 0; f < 2; ++f)
+            for (std::size_t e = 0; e < face[f].size(); ++e) face[f][e].add(o.face[f][e]);
+        steps += o.steps;
+    }
+};
+
+struct Job {
+    bool is_short;
+    std::uint64_t first, count;
+};
+
+class Simulator {
+public:
+    explicit Simulator(const McSettings& s) : s_(s), K_(s.albedos.size()), E_(s.eta.size()) {
+        log_albedo_.resize(K_);
+        log_scale_.resize(K_);
+        for (std::size_t k = 0; k < K_; ++k) {
+            log_albedo_[k] = s.albedos[k] > 0 ? std::log(s.albedos[k]) : -std::numeric_limits<double>::infinity();
+            log_scale_[k] = std::log(1.0 - s.albedos[k] * s.g);  // rho = r (1 - alpha g)
+        }
+        for (std::size_t e = 0; e < E_; ++e) inv_eta_[e] = 1.0 / s.eta[e];
+        uz0_ = s.cos_inside;
+        ux0_ = std::sqrt(std::max(0.0, 1.0 - uz0_ * uz0_));
+        low_factor_ = s.short_photons > 0 ? double(s.photons) / double(s.photons + s.short_photons) : 1.0;
+        log_rho0_ = std::log(s.bins.rho_0);
+        bins_per_ln_ = s.bins.per_decade / std::log(10.0);
+        ne_mu_ = s.radiance_cosines();
+        for (double m : ne_mu_) {
+            ne_inv_mu_.push_back(1.0 / m);
+            ne_sin_.push_back(std::sqrt(std::max(0.0, 1.0 - m * m)));
+        }
+        hg_norm_ = (1.0 - s.g * s.g) / (4.0 * kPi);
+    }
+
+    void run_job(const Job& job, Tally& t) const {
+        t.is_short = job.is_short;
+        t.init(s_);
+        Scratch sc;
+        sc.pw.resize(K_);
+        for (auto& v : sc.ps) v.assign(E_ * K_, 0.0);
+        for (std::uint64_t i = job.first; i < job.first + job.count; ++i) {
+            for (auto& v : sc.ps) std::fill(v.begin(), v.end(), 0.0);
+            trace(Rng(s_.seed, job.is_short ? 2 : 1, i), job.is_short, t, sc);
+            for (int f = 0; f < 2; ++f)
+                for (std::size_t e = 0; e < E_; ++e)
+                    for (std::size_t k = 0; k < K_; ++k) {
+                        t.face[f][e].single_sq[k] += sqr(sc.ps[2 * f][e * K_ + k]);
+                        t.face[f][e].multi_sq[k] += sqr(sc.ps[2 * f + 1][e * K_ + k]);
+                    }
+        }
+    }
+
+private:
+    struct Scratch {
+        std::vector<double> pw;       // alpha_k^n
+        std::vector<double> ps[4];    // per-photon sums: top single, top multi, bottom single, bottom multi [e * K + k]
+    };
+
+    // alpha_k^n for every albedo (pw), highest albedo last; returns the lowest k worth adding.
+    std::size_t powers(long n, std::vector<double>& pw) const {
+        std::size_t lowest = 0;
+        for (std::size_t k = K_; k-- > 0;) {
+            pw[k] = n == 0 ? 1.0 : std::exp(double(n) * log_albedo_[k]);
+            if (pw[k] < 1e-30) {  // every lower albedo is smaller still: negligible
+                for (std::size_t j = 0; j <= k; ++j) pw[j] = 0.0;
+                lowest = k + 1;
+                break;
+            }
+        }
+        return lowest;
+    }
+
+    void trace(Rng rng, bool is_short, Tally& t, Scratch& sc) const {
+        const double d = s_.thickness, g = s_.g;
+        const bool iso = std::fabs(g) < 1e-9;
+        const long short_max = s_.short_orders;
+        double x = 0, y = 0, z = 0, ux = ux0_, uy = 0, uz = uz0_;
+        double w[kMaxEtas];
+        for (std::size_t e = 0; e < E_; ++e) w[e] = 1.0;
+        long n = 0, pw_n = -1;
+        std::size_t lowest = 0;
+        double next_roulette = s_.roulette_order;
+        std::uint64_t steps = 0;
+        for (;;) {
+            ++steps;
+            const double step = -std::log(1.0 - rng.uniform());
+            double to_face = std::numeric_limits<double>::infinity();
+            if (uz < 0) to_face = z / -uz;
+            else if (uz > 0 && d < std::numeric_limits<double>::infinity()) to_face = (d - z) / uz;
+            if (step >= to_face) {
+                // Reaches a face: for each eta the transmitted part leaves (tallied), the
+                // reflected part goes on along the mirrored direction, shared by all etas.
+                x += ux * to_face;
+                y += uy * to_face;
+                const int face = uz < 0 ? 0 : 1;
+                z = face == 0 ? 0.0 : d;
+                const double mu = std::fabs(uz);
+                if (n != pw_n) {
+                    lowest = powers(n, sc.pw);
+                    pw_n = n;
+                }
+                const double f = (s_.short_photons > 0 && n <= short_max) ? low_factor_ : 1.0;
+                double wmax = 0;
+                for (std::size_t e = 0; e < E_; ++e) {
+                    if (!(w[e] > 0)) continue;
+                    const double fr = fresnel_dielectric(mu, inv_eta_[e]);
+                    tally_exit(t.face[face][e], e, face, n, x, y, mu, w[e], w[e] * (1.0 - fr) * f, f, sc, lowest);
+                    w[e] *= fr;
+                    wmax = std::max(wmax, w[e]);
+                }
+                uz = -uz;
+                if (!(wmax > 0)) break;
+                if (wmax < 0.1) {
+                    if (rng.uniform() < 0.5) {
+                        for (std::size_t e = 0; e < E_; ++e) w[e] *= 2.0;
+                    } else {
+                        break;
+                    }
+                }
+                continue;
+            }
+            x += ux * step;
+            y += uy * step;
+            z += uz * step;
+            ++n;
+            if (is_short && n > short_max) break;
+            if (double(n) >= next_roulette) {
+                next_roulette *= 2.0;
+                if (rng.uniform() < 0.5) {
+                    for (std::size_t e = 0; e < E_; ++e) w[e] *= 2.0;
+                } else {
+                    break;
+                }
+            }
+            if (n >= 2 && n <= s_.radiance_orders) next_event(t, n, z, ux, uz, w);
+            // Henyey-Greenstein deflection about the current direction.
+            const double xi = rng.uniform();
+            double ct;
+            if (iso) {
+                ct = 1.0 - 2.0 * xi;
+            } else {
+                const double q = (1.0 - g * g) / (1.0 - g + 2.0 * g * xi);
+                ct = std::clamp((1.0 + g * g - q * q) / (2.0 * g), -1.0, 1.0);
+            }
+            const double st = std::sqrt(std::max(0.0, 1.0 - ct * ct));
+            // Azimuth: a point uniform in the unit disc (rejection) gives cos and sin of a
+            // uniform angle without trigonometric calls.
+            double a, b, rr;
+            do {
+                a = 2.0 * rng.uniform() - 1.0;
+                b = 2.0 * rng.uniform() - 1.0;
+                rr = a * a + b * b;
+            } while (rr > 1.0 || rr < 1e-300);
+            const double inv_r = 1.0 / std::sqrt(rr);
+            const double cp = a * inv_r, sp = b * inv_r;
+            double nx, ny, nz;
+            if (std::fabs(uz) > 0.99999) {
+                nx = st * cp;
+                ny = st * sp;
+                nz = uz > 0 ? ct : -ct;  // sign(uz) ct (not copysign, which drops the sign of ct)
+            } else {
+                const double den = std::sqrt(1.0 - uz * uz);
+                nx = st * (ux * uz * cp - uy * sp) / den + ux * ct;
+                ny = st * (uy * uz * cp + ux * sp) / den + uy * ct;
+                nz = -st * cp * den + uz * ct;
+            }
+            const double inv = 1.0 / std::sqrt(nx * nx + ny * ny + nz * nz);  // keep unit length over long paths
+            ux = nx * inv;
+            uy = ny * inv;
+            uz = nz * inv;
+        }
+        t.steps += steps;
+    }
+
+    // The radiance the scattering event of order n at depth z sends straight to each face at the
+    // inside cosines mu_j: p(u . w_j) exp(-distance / mu_j) / mu_j, per eta times its weight. The
+    // azimuth of w_j is fixed (phi = 0): at normal incidence the expectation does not depend on it.
+    void next_event(Tally& t, long n, double z, double ux, double uz, const double* w) const {
+        const int J = int(ne_mu_.size());
+        const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
+        const double g = s_.g;
+        for (int face = 0; face < 2; ++face) {
+            const double dist = face == 0 ? z : s_.thickness - z;
+            if (!(dist < 40.0)) continue;  // exp(-40): nothing arrives
+            double q[32];
+            for (int j = 0; j < J; ++j) {
+                // w_j = (sin_j, 0, -mu_j) towards the top face (depth decreasing), +mu_j towards the bottom
+                const double c = ux * ne_sin_[j] + (face == 0 ? -uz : uz) * ne_mu_[j];
+                const double den = 1.0 + g * g - 2.0 * g * c;
+                q[j] = f * hg_norm_ / (den * std::sqrt(den)) * std::exp(-dist * ne_inv_mu_[j]) * ne_inv_mu_[j];
+            }
+            for (std::size_t e = 0; e < E_; ++e) {
+                if (!(w[e] > 0)) continue;
+                double* b = t.face[face][e].ne.data() + std::size_t(n) * J;
+                for (int j = 0; j < J; ++j) b[j] += w[e] * q[j];
+            }
+        }
+    }
+
+    void tally_exit(FaceTally& face, std::size_t e, int which, long n, double x, double y, double mu, double w_arrival,
+                    double w_exit, double f, Scratch& sc, std::size_t lowest) const {
+        const std::vector<double>& pw = sc.pw;
+        if (n == 0) {
+            for (std::size_t k = 0; k < K_; ++k) face.ballistic[k] += w_exit;
+            return;
+        }
+        if (n == 1) {
+            double* ps = sc.ps[2 * which].data() + e * K_;
+            for (std::size_t k = lowest; k < K_; ++k) {
+                const double c = w_exit * pw[k];
+                face.single[k] += c;
+                ps[k] += c;
+            }
+            return;
+        }
+        double* ps = sc.ps[2 * which + 1].data() + e * K_;
+        for (std::size_t k = lowest; k < K_; ++k) {
+            const double c = w_exit * pw[k];
+            face.multi[k] += c;
+            ps[k] += c;
+        }
+        if (!s_.radial) return;
+        const int nb = s_.bins.count, na = s_.angle_bins;
+        const double r = std::sqrt(x * x + y * y);
+        const double log_r = r > 0 ? std::log(r) : -std::numeric_limits<double>::infinity();
+        const int a = std::min(na - 1, int(mu * na));
+        for (std::size_t k = lowest; k < K_; ++k) {
+            const double c = w_exit * pw[k];
+            const double t = (log_r + log_scale_[k] - log_rho0_) * bins_per_ln_;
+            int b;
+            if (!(t >= 0)) b = 0;
+            else if (t < nb - 1) b = 1 + int(t);
+            else b = nb;
+            if (b < nb) {
+                face.radial[k * nb + b] += c;
+                face.radial_sq[k * nb + b] += c * c;
+            }
+            if (n > s_.radiance_orders) face.arrivals[k * na + a] += w_arrival * f * pw[k];
+        }
+    }
+
+    const McSettings& s_;
+    std::size_t K_, E_;
+    std::vector<double> log_albedo_, log_scale_;
+    double inv_eta_[kMaxEtas] = {};
+    std::vector<double> ne_mu_, ne_inv_mu_, ne_sin_;
+    double hg_norm_ = 0;
+    double ux0_ = 0, uz0_ = 1, low_factor_ = 1, log_rho0_ = 0, bins_per_ln_ = 1;
+};
+
+void finish_face(const FaceTally& t, const FaceTally* sq_short, const McSettings& s, McFace& out) {
+    // The estimate is (sum over full photons + sum over short photons) / N_full; each class's
+    // per-photon contributions are independent samples, so its variance adds N var(class) / N_full^2.
+    // t's *_sq hold the full photons' squares, sq_short the short photons' (sums in t are over both).
+    const double nf = double(s.photons), ns = double(s.short_photons);
+    const std::size_t K = s.albedos.size();
+    auto se = [&](double sum_full, double sq_full, double sum_short, double sq_short_v) {
+        double var = 0;
+        if (nf > 1) var += std::max(0.0, sq_full - sum_full * sum_full / nf);
+        if (ns > 1) var += std::max(0.0, sq_short_v - sum_short * sum_short / ns);
+        return std::sqrt(var) / nf;
+    };
+    out.ballistic.resize(K);
+    out.single.resize(K);
+    out.multi.resize(K);
+    out.single_se.resize(K);
+    out.multi_se.resize(K);
+    for (std::size_t k = 0; k < K; ++k) {
+        out.ballistic[k] = t.ballistic[k] / nf;
+        out.single[k] = t.single[k] / nf;
+        out.multi[k] = t.multi[k] / nf;
+        const double ss = sq_short ? sq_short->single[k] : 0.0, ms = sq_short ? sq_short->multi[k] : 0.0;
+        out.single_se[k] = se(t.single[k] - ss, t.single_sq[k], ss, sq_short ? sq_short->single_sq[k] : 0.0);
+        out.multi_se[k] = se(t.multi[k] - ms, t.multi_sq[k], ms, sq_short ? sq_short->multi_sq[k] : 0.0);
+    }
+    const int nb = s.bins.count;
+    out.radial.assign(t.radial.size(), 0.0);
+    out.radial_se.assign(t.radial.size(), 0.0);
+    for (std::size_t k = 0; k < K && s.radial; ++k)
+        for (int b = 0; b < nb; ++b) {
+            const double a = s.bins.area(b);
+            out.radial[k * nb + b] = t.radial[k * nb + b] / (nf * a);
+            out.radial_se[k * nb + b] = std::sqrt(t.radial_sq[k * nb + b]) / (nf * a);
+        }
+    out.arrivals.resize(t.arrivals.size());
+    for (std::size_t i = 0; i < t.arrivals.size(); ++i) out.arrivals[i] = t.arrivals[i] / nf;
+    // The next-event radiance per albedo: sum over orders of alpha^n times the order's tally.
+    const int J = s.radiance_nodes, N = s.radiance_orders;
+    out.radiance.assign(N > 0 ? K * J : 0, 0.0);
+    for (std::size_t k = 0; k < K && N > 0; ++k) {
+        const double la = s.albedos[k] > 0 ? std::log(s.albedos[k]) : -std::numeric_limits<double>::infinity();
+        for (int n = 2; n <= N; ++n) {
+            const double p = std::exp(n * la);
+            if (p < 1e-30) break;
+            for (int j = 0; j < J; ++j) out.radiance[k * J + j] += p * t.ne[std::size_t(n) * J + j] / nf;
+        }
+    }
+}
+
+}  // namespace
+
+McResult run_transport_mc(const McSettings& settings) {
+    const std::string bad = settings.validate();
+    if (!bad.empty()) throw std::invalid_argument("transport Monte Carlo: " + bad);
+    const auto t0 = std::chrono::steady_clock::now();
+    McResult res;
+    res.settings = settings;
+    const McSettings& s = res.settings;
+    Simulator sim(s);
+
+    // Fixed chunks, independent of the thread count; merged in order.
+    std::vector<Job> jobs;
+    const std::uint64_t full_chunk = 1024, short_chunk = 8192;
+    for (std::uint64_t i = 0; i < s.photons; i += full_chunk) jobs.push_back({false, i, std::min(full_chunk, s.photons - i)});
+    for (std::uint64_t i = 0; i < s.short_photons; i += short_chunk)
+        jobs.push_back({true, i, std::min(short_chunk, s.short_photons - i)});
+
+    int threads = s.threads > 0 ? s.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+    threads = int(std::min<std::size_t>(std::size_t(threads), jobs.size()));
+    res.threads_used = threads;
+
+    // `total` sums everything except that its *_sq fields collect the full photons only; the
+    // short photons' sums and squares go to `shorts` as well (for the standard errors).
+    Tally total, shorts;
+    total.init(s);
+    shorts.init(s);
+    std::vector<std::unique_ptr<Tally>> done(jobs.size());
+    std::size_t next_merge = 0;
+    std::mutex mutex;
+    std::atomic<std::size_t> next_job{0};
+    auto merge = [&](Tally& t) {
+        if (t.is_short) {
+            shorts.add(t);
+            for (auto& f : t.face)
+                for (FaceTally& ft : f) ft.clear_squares();
+        }
+        total.add(t);
+    };
+    auto worker = [&] {
+        for (;;) {
+            const std::size_t j = next_job.fetch_add(1);
+            if (j >= jobs.size()) return;
+            auto t = std::make_unique<Tally>();
+            sim.run_job(jobs[j], *t);
+            std::lock_guard<std::mutex> lock(mutex);
+            done[j] = std::move(t);
+            while (next_merge < jobs.size() && done[next_merge]) {
+                merge(*done[next_merge]);
+                done[next_merge].reset();
+                ++next_merge;
+            }
+        }
+    };
+    if (threads <= 1) {
+        worker();
+    } else {
+        std::vector<std::thread> pool;
+        for (int i = 0; i < threads; ++i) pool.emplace_back(worker);
+        for (auto& th : pool) th.join();
+    }
+    const bool any_short = s.short_photons > 0;
+    res.top.resize(s.eta.size());
+    res.bottom.resize(s.eta.size());
+    for (std::size_t e = 0; e < s.eta.size(); ++e) {
+        finish_face(total.face[0][e], any_short ? &shorts.face[0][e] : nullptr, s, res.top[e]);
+        finish_face(total.face[1][e], any_short ? &shorts.face[1][e] : nullptr, s, res.bottom[e]);
+    }
+    res.steps = total.steps;
+    res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return res;
+}
+
+// ---------------------------------------------------------------- asymptotic decay rate
+
+double transport_decay_rate(double albedo, double g, int moments) {
+    if (!(albedo < 1.0)) return 0.0;
+    if (!(albedo > 0.0)) return 1.0;  // no scattering: the uncollided beam, exp(-x)
+    const int N = std::max(2, moments);
+    // B_l = (2l + 1)(1 - alpha g^l) > 0; A_{l,l+1} = A_{l+1,l} = l + 1. Largest nu of
+    // A phi = nu B phi, i.e. of the symmetric tridiagonal T = B^-1/2 A B^-1/2 (zero diagonal).
+    std::vector<double> off(N - 1);
+    double gl = 1.0;
+    std::vector<double> b(N);
+    for (int l = 0; l < N; ++l) {
+        b[l] = (2.0 * l + 1.0) * (1.0 - albedo * gl);
+        gl *= g;
+    }
+    for (int l = 0; l + 1 < N; ++l) off[l] = (l + 1.0) / std::sqrt(b[l] * b[l + 1]);
+    // Sturm count: eigenvalues of T greater than x (zero diagonal).
+    auto count_above = [&](double x) {
+        int neg = 0;  // number of negative pivots of T - x I = eigenvalues below x
+        double q = -x;
+        if (q < 0) ++neg;
+        for (int l = 1; l < N; ++l) {
+            if (q == 0) q = 1e-300;
+            q = -x - off[l - 1] * off[l - 1] / q;
+            if (q < 0) ++neg;
+        }
+        return N - neg;
+    };
+    double hi = 0;
+    for (double o : off) hi = std::max(hi, 2.0 * o);  // Gershgorin
+    hi += 1.0;
+    double lo = 0.0;
+    for (int it = 0; it < 200 && hi - lo > 1e-14 * hi; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        if (count_above(mid) >= 1) lo = mid;
+        else hi = mid;
+    }
+    const double nu = 0.5 * (lo + hi);
+    return nu > 1.0 ? 1.0 / nu : 1.0;
+}
+
+}  // namespace shading
