@@ -74,7 +74,7 @@ def test_layout(prefix):
         assert shown.returncode == 0 and shown.stdout.startswith(page.upper()), shown.stderr
     assert not (prefix / "bin" / "povray").exists()  # stock's name stays stock's
     assert f"Library_Path={share}/include" in (etc / "povray.ini").read_text()
-    # the fork's tables: searched after the user's folders (patch 0027)
+    # the fork's tables: searched after the user's folders (patch 0018)
     conf = (etc / "povray.conf").read_text()
     assert f"[Library Paths]\nLibrary_Path={share}/brdf_data" in conf
     assert f"read* = {share}/include" in (etc / "povray.conf").read_text()

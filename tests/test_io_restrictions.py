@@ -14,7 +14,7 @@ examples; read+write the temporary folder and ``.``) plus the fork's folders; th
 folder is readable (patch 0012); a user's ``~/.povray/3.7/povray.conf`` adds paths (0011) and
 a user's ``povray.ini`` adds to the fork's (0014); refusals say which path, why and the line
 that permits it, with no "Unknown error code" after them (0013); a table that cannot be read
-says whether it was found and where POV looked (0015). Those tests run the fork directly in
+says whether it was found and where POV looked (0003). Those tests run the fork directly in
 folders under ``/var/tmp`` (outside the temporary folder the conf permits), each with a
 temporary ``HOME`` there.
 """
@@ -278,7 +278,7 @@ def test_scene_write_inside_the_permitted_paths_is_allowed(fork, site, where):
         target.unlink(missing_ok=True)
 
 
-# ---------------------------------------------------------------- pipes, devices (0025)
+# ---------------------------------------------------------------- pipes, devices (0016)
 
 @pytest.mark.parametrize("how", ["scene", "include"])
 def test_a_fifo_is_refused_at_once_not_read(fork, site, how):
@@ -302,7 +302,7 @@ def test_a_device_is_not_read_as_an_include_file(fork, site):
         p.stderr[-1500:]
 
 
-# ---------------------------------------------------------------- library path order (0027)
+# ---------------------------------------------------------------- library path order (0018)
 
 def test_the_users_library_folders_come_before_the_forks_own(fork, site):
     """A user's +L folder with a table named like one of the fork's ready tables (gold.brdf)

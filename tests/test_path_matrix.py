@@ -1,7 +1,7 @@
 """No way out of the permitted folders: every entry point x every path form
 (:mod:`harness.reports.path_matrix`), attacked from a scene three folders below a project.
 
-Patch 0024 (``patches/0024-unix-canonical-paths.patch``) walks a path as the kernel does before
+Patch 0015 (``patches/0015-unix-canonical-paths.patch``) walks a path as the kernel does before
 the I/O restrictions compare it with the permitted folders; upstream's canonicaliser let
 ``a/b/c/../../..`` keep a ``..`` and climb out. The fast test attacks the fork with the forms
 upstream got wrong (consecutive ``..`` relative and after an absolute permitted prefix, ``..``

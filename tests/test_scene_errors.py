@@ -123,7 +123,7 @@ def test_directory_as_table_names_the_file(fork, table_files):
 
 def test_a_sample_spacing_far_too_small_says_what_to_do_and_no_uncategorized_error(fork):
     """Refused when the render builds the object's point cloud: one message, then POV's
-    parameter error (it was "Uncategorized error.", patch 0028)."""
+    parameter error (it was "Uncategorized error.", patch 0006)."""
     with pytest.raises(runner.RenderError) as ei:
         runner.render(SCENE.format(finish='dipole { "Marble" profile dipole sample_spacing 1e-9 }'), fork,
                       width=8, height=8)

@@ -1,4 +1,4 @@
-"""The renderer on a full disk (patch 0026): an error naming the file, no abort, nothing partial.
+"""The renderer on a full disk (patch 0017): an error naming the file, no abort, nothing partial.
 
 Upstream POV-Ray 3.7 (and Debian's stock binary) aborts with SIGABRT on a full disk: the
 render state file (``FILE.pov-state``) throws from the message thread; and an image whose

@@ -23,7 +23,7 @@ reads); a write escapes when the file appears in the refused folder. A permitted
 **works** when the render succeeds and the write lands where the kernel puts it. The
 fork must refuse every escape form and permit every permitted one; the stock binary's
 column is printed beside it (Debian's 3.7.0.10 enforces no restriction at all, and its
-path canonicalisation is the one patch 0024 replaces).
+path canonicalisation is the one patch 0015 replaces).
 
 ``--binary fork`` (default both), ``--jobs N``; exits 1 if the fork lets one escape or
 refuses a permitted case.

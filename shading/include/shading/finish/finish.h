@@ -83,6 +83,7 @@ struct FinishModel {
     // A `dipole { }` finish: the subsurface light (subsurface.h) the renderer adds at every
     // point, while `brdf` holds its single scattering plus any coat (DipoleSurfaceBrdf).
     std::shared_ptr<const Subsurface> subsurface;
+    bool has_subsurface() const { return subsurface != nullptr; }
     // With a subsurface: a registered model whose BRDF is Ft(eta, cos_i)/pi
     // (TransmittanceBrdf); lit by the renderer's light loop it yields the transmitted
     // irradiance E_t at a point. Set by finish_model_with_subsurface, shared by copies, the
@@ -160,6 +161,27 @@ std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coa
 // The model's directional albedo at cos(theta) (linear between nodes; scale/tint not applied).
 Rgb finish_model_albedo(const FinishModel& model, double cos_theta);
 
+// A file the renderer located under its own rules (library path, I/O restrictions), for the
+// library to read when it needs the bytes.
+struct FoundFile {
+    std::string key;  // the resolved path: finishes naming one file share what was read from it
+    // Its size in bytes: negative when it cannot be read; a folder may answer INT64_MAX.
+    std::function<std::int64_t()> size;
+    // Reads `bytes` bytes from the start into `to`; false when fewer came.
+    std::function<bool(std::uint8_t* to, std::size_t bytes)> read;
+};
+// Locates `name` for the library; null when it is not found or the I/O restrictions refuse it.
+using FindFile = std::function<std::unique_ptr<FoundFile>(const std::string& name)>;
+
+// A `brdf_table` finish: the table in `file` (the scene's name for it is `source`), read only
+// when no live table has its key, checked whole (load_table) and never larger than the largest
+// table the loader accepts. Throws std::invalid_argument, TableError: "SOURCE: offset N: ...".
+std::shared_ptr<FinishModel> make_table_finish(const std::string& source, const FoundFile& file, bool interpolate);
+// Why `name` could not be opened: not found (and where the renderer looked), or found at
+// `found` and refused or unreadable (locate.h explain_unopened).
+std::string finish_file_unopened(const std::string& name, const std::string& found,
+                                 const std::vector<std::string>& library_paths);
+
 // A table as a Brdf with its own interpolation choice, so finishes that name the same file
 // with different `interpolate` settings share one table.
 BrdfPtr table_brdf(std::shared_ptr<const BrdfTable> table, Interp interp);
@@ -177,6 +199,11 @@ struct SharedTableStats {
     std::size_t sampler_bytes = 0, peak_sampler_bytes = 0;
 };
 SharedTableStats shared_table_stats();
+
+// The statistics lines of every table and subsurface finish of the process so far (table memory,
+// files read, subsurface clouds, points, lookups, thin geometry, warnings), for POV's render
+// statistics; none when no such finish ran.
+std::vector<std::string> finish_statistics();
 
 // Counted registry, process-wide. register returns a handle > 0 holding one reference.
 // addref/release accept 0 (no model) as a no-op, so FINISH copies need no special case.

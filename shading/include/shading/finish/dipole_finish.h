@@ -1,0 +1,83 @@
+// The renderer's side of a `dipole { }` finish: the block's keywords as plain values in, a
+// registered-ready finish model out, and the subsurface light at a shaded point. The patches
+// parse the block and implement DipoleObject with the renderer's own geometry; nothing else of
+// the subsurface layer reaches them.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "shading/finish/finish.h"
+
+namespace shading {
+
+// A `dipole { }` block as the scene wrote it. What is not given keeps the preset's value or
+// the library's default (SubsurfaceSettings).
+struct DipoleParams {
+    std::string preset;                                   // a published medium; empty: none
+    std::optional<Rgb> sigma_s, sigma_s_prime, sigma_a;  // 1/mm
+    std::optional<Rgb> anisotropy;                        // Henyey-Greenstein g per channel
+    std::optional<double> ior;                            // n_medium / n_outside
+    std::optional<double> mm_per_unit;                    // mm per scene unit
+    double scene_mm_per_unit = 10.0;                      // global_settings mm_per_unit: the default
+    std::optional<double> sample_spacing, error_bound;    // scene units (0: automatic); octree threshold
+    std::optional<int> refine_levels;
+    std::optional<bool> single_scatter;                   // default: on with the exact profile
+    std::optional<bool> thin_geometry;
+    bool exact_profile = true;                            // `profile exact` (default) or `profile dipole`
+};
+
+// Whether `name` is a preset; throws std::invalid_argument naming the presets otherwise (the
+// parser asks at the name, so the error points there).
+void dipole_preset_check(const std::string& name);
+
+// The finish of a dipole block with `coat` (may be null) above it: finish_model_with_subsurface
+// of the medium, its profile (the exact one reads subsurface_profiles.ssp and, where `find`
+// locates it, subsurface_slabs.ssp) and settings. `warnings` gets what the renderer should show
+// as warnings (e.g. a g outside the exact profile's tables). Throws std::invalid_argument with a
+// complete message ("dipole: ...") for a block that cannot make a finish.
+std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& params, const FinishModel* coat,
+                                                const FindFile& find, std::vector<std::string>* warnings);
+
+// What the library asks of the renderer about one object with a dipole finish while it samples
+// the object's surface (once per object, from the render threads that reach it first).
+class DipoleObject {
+public:
+    virtual ~DipoleObject() = default;
+    struct Hit {
+        double t;   // distance along the line from its origin
+        Vec3 p, n;  // point and outward unit normal
+    };
+    // The camera, for refinement within reach of what is seen.
+    struct CameraView {
+        enum class Kind { Everywhere, Perspective, Orthographic };
+        Kind kind = Kind::Everywhere;
+        Vec3 location, direction, right, up;
+        double lens = 0;
+    };
+    // The object's bounding box; false when it has none (unbounded: no subsurface light).
+    virtual bool bounds(Vec3* lo, Vec3* hi) = 0;
+    // Every crossing of the object's surface by origin + t e_axis, t > 0, in any order.
+    virtual void line_hits(int axis, const Vec3& origin, std::vector<Hit>* hits) = 0;
+    // Transmitted irradiance E_t at p (outward unit normal n), POV units.
+    virtual Rgb irradiance(const Vec3& p, const Vec3& n) = 0;
+    // What the object is, for messages ("sphere").
+    virtual std::string describe() = 0;
+    virtual CameraView camera() { return CameraView(); }
+    // Distance from p along -n to the object's next surface crossing (infinity: none).
+    virtual double thickness(const Vec3& p, const Vec3& n) = 0;
+};
+
+// pixel += finish_subsurface_radiance(...): the light that entered `model`'s medium on the object
+// `key` (the object's identity) and leaves at x (unit normal n) toward to_eye. The object's
+// point cloud is sampled through `object` on first use; `here()` is E_t at x itself, asked for
+// after the cloud exists. Throws std::invalid_argument when the cloud cannot be built (a
+// spacing far too small for the object), with what to change.
+Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, DipoleObject& object, const Vec3& x,
+                               const Vec3& n, const Vec3& to_eye, const std::function<Rgb()>& here);
+
+}  // namespace shading

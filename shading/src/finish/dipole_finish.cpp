@@ -1,0 +1,183 @@
+// dipole finishes: a block's keywords into a Subsurface under the finish's coat, and the
+// renderer's object behind the subsurface layer's SurfaceSampler.
+#include "shading/finish/dipole_finish.h"
+
+#include <cstdio>
+#include <stdexcept>
+
+#include "shading/subsurface/media_presets.h"
+#include "shading/subsurface/radial_profile.h"
+#include "shading/subsurface/ss_profile.h"
+#include "shading/subsurface/subsurface.h"
+
+namespace shading {
+namespace {
+
+// The exact profile of `medium` from subsurface_profiles.ssp and, where found,
+// subsurface_slabs.ssp (without it thin objects use the multipole, and the statistics say so).
+std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const FindFile& find,
+                                                  std::vector<std::string>* warnings) {
+    const char *name = "subsurface_profiles.ssp", *slab_name = "subsurface_slabs.ssp";
+    std::unique_ptr<FoundFile> file = find(name);
+    if (!file)
+        throw std::invalid_argument(std::string("dipole: profile exact needs '") + name +
+                                    "' on the library path (make brdf-data builds it into build/brdf_data), "
+                                    "or not permitted by the I/O restrictions; write `profile dipole` to use the "
+                                    "dipole without it.");
+    std::unique_ptr<FoundFile> slab_file = find(slab_name);
+    auto load = [](const FoundFile& in, const char* file_name) {
+        const std::int64_t size = in.size();
+        if (size < 0 || size > (std::int64_t(1) << 30))  // a folder can read as 2^63 - 1
+            throw ProfileError(std::string(file_name) + ": offset 0: expected a readable table file of at most 1 GiB");
+        std::vector<std::uint8_t> bytes(static_cast<std::size_t>(size));
+        if (size > 0 && !in.read(bytes.data(), bytes.size()))
+            throw ProfileError(std::string(file_name) + ": offset 0: expected " + std::to_string(size) + " bytes, read fewer");
+        return load_profile_tables(bytes.data(), bytes.size(), file_name);
+    };
+    std::shared_ptr<const ExactProfile> profile;
+    try {
+        std::shared_ptr<const ProfileTables> tables =
+            shared_profile_tables(file->key, [&]() { return load(*file, name); });
+        std::shared_ptr<const ProfileTables> slabs;
+        if (slab_file) slabs = shared_profile_tables(slab_file->key, [&]() { return load(*slab_file, slab_name); });
+        profile = std::make_shared<const ExactProfile>(medium, tables, slabs);
+    } catch (const std::exception& e) {
+        throw std::invalid_argument(std::string("dipole: ") + e.what());
+    }
+    for (const std::string& note : profile->notes()) warnings->push_back("dipole: " + note);
+    return profile;
+}
+
+// The renderer's object as the subsurface layer's sampler.
+class Sampler final : public SurfaceSampler {
+public:
+    explicit Sampler(DipoleObject& object) : object_(object) {}
+    bool bounds(Vec3* lo, Vec3* hi) override { return object_.bounds(lo, hi); }
+    void line_hits(int axis, const Vec3& origin, std::vector<Hit>* hits) override {
+        found_.clear();
+        object_.line_hits(axis, origin, &found_);
+        for (const DipoleObject::Hit& h : found_) hits->push_back(Hit{h.t, h.p, h.n});
+    }
+    Rgb irradiance(const Vec3& p, const Vec3& n) override { return object_.irradiance(p, n); }
+    std::string describe() override { return object_.describe(); }
+    ViewVolume view() override {
+        const DipoleObject::CameraView c = object_.camera();
+        ViewVolume v;
+        v.kind = c.kind == DipoleObject::CameraView::Kind::Perspective    ? ViewVolume::Kind::Perspective
+                 : c.kind == DipoleObject::CameraView::Kind::Orthographic ? ViewVolume::Kind::Orthographic
+                                                                      : ViewVolume::Kind::Everywhere;
+        v.location = c.location;
+        v.direction = c.direction;
+        v.right = c.right;
+        v.up = c.up;
+        v.lens = c.lens;
+        return v;
+    }
+    double thickness(const Vec3& p, const Vec3& n) override { return object_.thickness(p, n); }
+
+private:
+    DipoleObject& object_;
+    std::vector<DipoleObject::Hit> found_;
+};
+
+}  // namespace
+
+void dipole_preset_check(const std::string& name) { (void)media_preset(name); }
+
+std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const FinishModel* coat, const FindFile& find,
+                                                std::vector<std::string>* warnings) {
+    if (p.sigma_s && p.sigma_s_prime)
+        throw std::invalid_argument("dipole: give sigma_s (with anisotropy) or sigma_s_prime, not both.");
+    if (p.preset.empty() && !(p.sigma_s || p.sigma_s_prime))
+        throw std::invalid_argument("dipole: expected a preset name or sigma_s / sigma_s_prime (1/mm).");
+    if (p.preset.empty() && !p.sigma_a)
+        throw std::invalid_argument("dipole: expected sigma_a (1/mm) with sigma_s / sigma_s_prime.");
+    Medium medium;
+    medium.sigma_s = medium.sigma_a = medium.g = Rgb(0.0);
+    if (!p.preset.empty()) {
+        try {
+            medium = media_preset(p.preset);
+        } catch (const std::exception& e) {
+            throw std::invalid_argument(std::string("dipole: ") + e.what());
+        }
+    }
+    if (p.sigma_s) medium.sigma_s = *p.sigma_s;
+    if (p.sigma_a) medium.sigma_a = *p.sigma_a;
+    if (p.anisotropy) medium.g = *p.anisotropy;
+    if (p.ior) medium.eta = *p.ior;
+    // the scene's own scale unless the block gives one (global_settings mm_per_unit)
+    medium.mm_per_unit = p.mm_per_unit ? *p.mm_per_unit : p.scene_mm_per_unit;
+    if (p.sigma_s_prime) {
+        // sigma_s' alone: an isotropic medium with that scattering (Jensen 2001's tables)
+        medium.sigma_s = *p.sigma_s_prime;
+        medium.g = Rgb(0.0);
+    }
+    SubsurfaceSettings settings;
+    if (p.sample_spacing) settings.spacing = *p.sample_spacing;
+    if (p.error_bound) settings.max_angle = *p.error_bound;
+    if (p.refine_levels) settings.max_levels = *p.refine_levels;
+    if (p.thin_geometry) settings.thin = *p.thin_geometry;
+    std::shared_ptr<const RadialProfile> profile;
+    if (p.exact_profile) profile = exact_profile(medium, find, warnings);
+    // the exact profile leaves single scattering to the BRDF; the dipole's Rd stands for it
+    settings.single_scatter = p.single_scatter ? *p.single_scatter : p.exact_profile;
+    auto subsurface = std::make_shared<const Subsurface>(medium, settings, FdrModel::JensenFit, profile);
+    return finish_model_with_subsurface(coat, subsurface);
+}
+
+Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, DipoleObject& object, const Vec3& x,
+                               const Vec3& n, const Vec3& to_eye, const std::function<Rgb()>& here) {
+    const Subsurface& subsurface = *model.subsurface;
+    Sampler sampler(object);
+    const PointCloud& cloud = subsurface.cloud(key, sampler);
+    const Rgb e = here();
+    // the point's own thickness, one ray, only where the object is thinner than the finish's
+    // slab threshold somewhere (thick objects: infinity, no ray)
+    const double thickness = subsurface.wants_thickness(cloud) ? object.thickness(x, n)
+                                                               : std::numeric_limits<double>::infinity();
+    return subsurface.radiance(cloud, x, n, to_eye, e, thickness);
+}
+
+std::vector<std::string> finish_statistics() {
+    std::vector<std::string> lines;
+    char buf[512];
+    auto line = [&](const char* format, auto... args) {
+        std::snprintf(buf, sizeof buf, format, args...);
+        lines.push_back(buf);
+    };
+    const SubsurfaceStats ss = subsurface_stats();
+    if (ss.clouds > 0) {
+        line("Dipole objects:     %15.0f         Points: %10.0f", double(ss.clouds), double(ss.points));
+        line("Dipole precompute:  %15.3f seconds", ss.build_seconds);
+        if (ss.max_levels > 0) {
+            line("Dipole refinement:  %15d levels  Points: %10.0f", ss.max_levels, double(ss.refined_points));
+            line("Dipole finest spacing: %12g units", ss.finest_spacing);
+        }
+        line("Dipole lookups:     %15.0f         Nodes/lookup: %6.1f", double(ss.lookups),
+             ss.lookups > 0 ? double(ss.nodes_visited) / double(ss.lookups) : 0.0);
+        if (ss.unbounded > 0)
+            line("Dipole warning: %.0f object(s) without a finite bounding box got no subsurface light", double(ss.unbounded));
+        if (ss.thin > 0)
+            line("Dipole warning: %.0f object(s) thinner than the mean free path in places; the dipole assumes a thick medium",
+                 double(ss.thin));
+        if (ss.slab_objects > 0) {
+            line("Dipole thin geometry: %.0f object(s) thinner than a half-space in places;", double(ss.slab_objects));
+            line("  thinnest %g units = %.3g mean free paths: slab profiles in %.0f lookups", ss.thinnest, ss.thinnest_mfp,
+                 double(ss.slab_lookups));
+        }
+        const std::size_t shown = 10;  // per-object warnings (small objects): the first few, then a count
+        for (std::size_t i = 0; i < ss.notes.size() && i < shown; i++) lines.push_back(ss.notes[i]);
+        if (ss.notes.size() > shown)
+            line("Dipole warning: %.0f more object(s) smaller than 3 diffusion lengths", double(ss.notes.size() - shown));
+    }
+    const SharedTableStats bt = shared_table_stats();
+    if (bt.peak_tables > 0) {
+        line("BRDF tables:        %15.0f         Files read: %6.0f  Shared: %6.0f", double(bt.peak_tables), double(bt.loads),
+             double(bt.reuses));
+        line("BRDF table memory:  %15.0f bytes", double(bt.peak_bytes));
+        if (bt.peak_sampler_bytes > 0) line("BRDF sampling data: %15.0f bytes", double(bt.peak_sampler_bytes));
+    }
+    return lines;
+}
+
+}  // namespace shading
