@@ -89,7 +89,7 @@ TEST(Finish, AlbedoOfMicrofacetFollowsFresnel) {
 
 TEST(Finish, AlbedoOfTableUsesTheTable) {
     std::shared_ptr<const BrdfTable> t = lambert_table(0.4);
-    auto m = make_finish_model(table_brdf(t, Interp::Linear));
+    auto m = make_finish_model(t, Interp::Linear);
     for (double c : {1.0, 0.5, 0.1}) EXPECT_NEAR(finish_model_albedo(*m, c).r, 0.4, 2e-3) << c;
 }
 
@@ -111,7 +111,7 @@ TEST(Finish, IsotropicTableFastPathEqualsTheFramePath) {
                          TableGeometry::isotropic(2.0));
     std::shared_ptr<const BrdfTable> t = build_table(grid, BuildOptions{});
     for (Interp interp : {Interp::Linear, Interp::Nearest}) {
-        auto m = make_finish_model(table_brdf(t, interp));
+        auto m = make_finish_model(t, interp);
         ASSERT_EQ(m->iso_table, t.get());
         uint64_t state = 12345;
         auto rnd = [&] {
@@ -332,7 +332,7 @@ TEST(GlossyReflection, IndirectWeightKeepsOnlyTheBase) {
     EXPECT_DOUBLE_EQ(base.g, 0.3);
     EXPECT_DOUBLE_EQ(base.b, 0.2);
     // A table has no separable base: all of it is sampled.
-    auto t = make_finish_model(table_brdf(std::shared_ptr<const BrdfTable>(lambert_table(0.5)), Interp::Linear));
+    auto t = make_finish_model(std::shared_ptr<const BrdfTable>(lambert_table(0.5)), Interp::Linear);
     EXPECT_EQ(t->base.max_component(), 0.0);
 }
 
@@ -379,7 +379,7 @@ TEST(Finish, OneViewPerHitGivesTheSameBitsAsAFreshOne) {
         build_table(tabulate(*make_brdf("microfacet d=beckmann m=0.25 kd=0.2 rho_s=0.8"), TableGeometry::isotropic(2.0)),
                     fold);
     std::vector<std::shared_ptr<FinishModel>> models = {
-        make_finish_model(table_brdf(t, Interp::Linear)), make_finish_model(table_brdf(t, Interp::Nearest)),
+        make_finish_model(t, Interp::Linear), make_finish_model(t, Interp::Nearest),
         make_finish_model(make_brdf("microfacet d=beckmann m=0.2 f=conductor n=0.2,0.4,1.4 k=3.4,2.4,1.8")),
         make_finish_model(make_brdf("ward ax=0.05 ay=0.3 rho_s=0.3"))};
     models.back()->tangent = Vec3(0.3, 1.0, 0.2);
@@ -439,7 +439,7 @@ TEST(Finish, PrefetchedLightGivesTheSameBits) {
     std::shared_ptr<const BrdfTable> t =
         build_table(tabulate(*make_brdf("microfacet d=beckmann m=0.2 kd=0.3 rho_s=0.7"), TableGeometry::isotropic(2.0)), fold);
     for (Interp interp : {Interp::Linear, Interp::Nearest}) {
-        auto m = make_finish_model(table_brdf(t, interp));
+        auto m = make_finish_model(t, interp);
         const Vec3 n = normalize(Vec3(0.1, 0.2, 1.0)), eye = normalize(Vec3(0.4, -0.3, 1.0));
         FinishView v;
         finish_view(*m, n, eye, &v);
@@ -479,7 +479,7 @@ TEST(Finish, PrefetchedTableReadIsTheFreshLookup) {
     const Rgb pigment(0.9, 0.5, 0.25);
     for (const auto& t : {iso, hd})
         for (Interp interp : {Interp::Linear, Interp::Nearest}) {
-            auto m = make_finish_model(table_brdf(t, interp));
+            auto m = make_finish_model(t, interp);
             m->scale = Rgb(0.5, 1.0, 2.0);
             int nonzero = 0;
             for (int k = 0; k < 300; ++k) {
@@ -523,7 +523,7 @@ TEST(Finish, ViewLookupOfATableIsTheTableTimesPiCosine) {
     for (float v : t->values()) top = std::max(top, double(v));
     for (Interp interp : {Interp::Linear, Interp::Nearest})
         for (bool tint : {false, true}) {
-            auto m = make_finish_model(table_brdf(t, interp));
+            auto m = make_finish_model(t, interp);
             m->scale = Rgb(0.5, 1.0, 2.0);
             m->tint = tint;
             const Rgb pigment(0.9, 0.5, 0.25);

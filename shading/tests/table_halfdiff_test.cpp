@@ -439,7 +439,7 @@ TEST(HalfDiffFile, RoundTripsAndTheFinishReadsItFromWorldVectors) {
 
     // The finish path: halfdiff_table set, pi f cos_i from world vectors.
     std::shared_ptr<const BrdfTable> shared(std::move(u));
-    auto fm = make_finish_model(table_brdf(shared, Interp::Linear));
+    auto fm = make_finish_model(shared, Interp::Linear);
     ASSERT_EQ(fm->halfdiff_table, shared.get());
     EXPECT_EQ(fm->iso_table, nullptr);
     const Vec3 n = normalize(Vec3(0.2, 0.9, -0.3)), l = normalize(Vec3(0.5, 0.8, 0.1)), v = normalize(Vec3(-0.3, 0.7, -0.6));

@@ -359,7 +359,7 @@ TEST(TableSampler, BuiltOnceSharedAndCounted) {
         EXPECT_EQ(TableSampler::memory().live, before + bytes);
         EXPECT_GE(TableSampler::memory().peak, before + bytes);
         // A finish on the table samples through the same sampler.
-        auto m = make_finish_model(table_brdf(t, Interp::Nearest));
+        auto m = make_finish_model(t, Interp::Nearest);
         EXPECT_EQ(m->brdf->pdf(Vec3(0, 0, 1), normalize(Vec3(0.1, 0.2, 1))),
                   t->pdf(Vec3(0, 0, 1), normalize(Vec3(0.1, 0.2, 1))));
         EXPECT_EQ(t->sampler_bytes(), bytes);
@@ -394,7 +394,7 @@ TEST(TableSampler, FinishReflectionOfATableIsItsAlbedo) {
     // finish_reflection_sample on a table finish (the renderer's glossy rays): 400 hit points
     // x 64 stratified rays average to the table's directional albedo.
     auto t = make_table(kFurnaceSpec, 1.0, true);
-    auto m = make_finish_model(table_brdf(t, Interp::Linear));
+    auto m = make_finish_model(t, Interp::Linear);
     m->reflection_samples = 64;
     const Vec3 n = normalize(Vec3(0.2, 0.3, 1.0));
     for (double th : {0.0, 45.0, 75.0}) {

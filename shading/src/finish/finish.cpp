@@ -381,22 +381,12 @@ BrdfPtr table_brdf(std::shared_ptr<const BrdfTable> table, Interp interp) {
 }
 
 namespace {
-// The table behind a Brdf, if it is one (directly or through a TableView), and its lookup.
-const BrdfTable* table_of(const Brdf& b, Interp* interp) {
-    if (auto view = dynamic_cast<const TableView*>(&b)) {
-        if (interp) *interp = view->interpolation();
-        return &view->table();
-    }
-    const BrdfTable* t = dynamic_cast<const BrdfTable*>(&b);
-    if (t && interp) *interp = t->interpolation();
-    return t;
-}
-
 std::shared_ptr<FinishModel> finish_model_around(std::shared_ptr<const AlbedoNodes> albedo) {
     auto m = std::make_shared<FinishModel>();
     m->brdf = albedo->brdf();
     m->base = m->brdf->lambert_base();
-    const BrdfTable* table = table_of(*m->brdf, &m->iso_interp);
+    const BrdfTable* table = albedo->table();
+    if (table) m->iso_interp = albedo->interpolation();
     if (table && table->halfdiff())
         m->halfdiff_table = table;
     else if (table && !table->anisotropic())
@@ -406,13 +396,14 @@ std::shared_ptr<FinishModel> finish_model_around(std::shared_ptr<const AlbedoNod
 }
 }  // namespace
 
-AlbedoNodes::AlbedoNodes(BrdfPtr brdf) : brdf_(std::move(brdf)) {
+AlbedoNodes::AlbedoNodes(BrdfPtr brdf, std::shared_ptr<const BrdfTable> table, Interp interp)
+    : brdf_(std::move(brdf)), table_(std::move(table)), interp_(interp) {
     if (!brdf_) throw std::invalid_argument("AlbedoNodes: no BRDF");
 }
 
 const std::vector<Rgb>& AlbedoNodes::get() const {
     std::call_once(once_, [this] {
-        const BrdfTable* table = table_of(*brdf_, nullptr);
+        const BrdfTable* table = table_.get();
         std::vector<Rgb> nodes(FinishModel::kAlbedoNodes);
         for (int k = 0; k < FinishModel::kAlbedoNodes; ++k) {
             // The grazing node itself is degenerate (wo in the surface); use 89.9 deg there.
@@ -430,12 +421,15 @@ std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf) {
     return finish_model_around(std::make_shared<const AlbedoNodes>(std::move(brdf)));
 }
 
+std::shared_ptr<FinishModel> make_finish_model(std::shared_ptr<const BrdfTable> table, Interp interp) {
+    if (!table) throw std::invalid_argument("make_finish_model: no table");
+    BrdfPtr view = table_brdf(table, interp);
+    return finish_model_around(std::make_shared<const AlbedoNodes>(std::move(view), std::move(table), interp));
+}
+
 std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coat, std::shared_ptr<const Subsurface> s) {
-    BrdfPtr coat_brdf;
-    if (coat) {
-        coat_brdf = coat->brdf;
-        if (auto d = std::dynamic_pointer_cast<const DipoleSurfaceBrdf>(coat_brdf)) coat_brdf = d->coat();
-    }
+    // the coat's own BRDF, without the dipole an earlier `dipole { }` of the finish put under it
+    const BrdfPtr coat_brdf = !coat ? nullptr : coat->has_subsurface() ? coat->coat : coat->brdf;
     auto m = make_finish_model(std::make_shared<DipoleSurfaceBrdf>(s, coat_brdf));
     if (coat) {
         m->scale = coat->scale;
@@ -446,6 +440,7 @@ std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coa
     m->transmittance = std::make_shared<const ModelHandle>(
         finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(s->model_ptr()))));
     m->subsurface = std::move(s);
+    m->coat = coat_brdf;
     return m;
 }
 

@@ -25,7 +25,7 @@ std::shared_ptr<FinishModel> make_table_finish(const std::string& source, const 
             throw TableError(source + ": offset 0: expected " + std::to_string(size) + " bytes, read fewer");
         return load_table(bytes.data(), bytes.size(), source);
     });
-    return make_finish_model(table_brdf(t, interpolate ? Interp::Linear : Interp::Nearest));
+    return make_finish_model(t, interpolate ? Interp::Linear : Interp::Nearest);
 }
 
 std::string finish_file_unopened(const std::string& name, const std::string& found,

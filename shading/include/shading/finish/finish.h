@@ -40,13 +40,18 @@ private:
 // models a quadrature (~70 ms per distinct model; see finish.cpp).
 class AlbedoNodes {
 public:
-    explicit AlbedoNodes(BrdfPtr brdf);
+    // `table`: the table behind `brdf` (read with `interp`), if it is one: its own albedo.
+    explicit AlbedoNodes(BrdfPtr brdf, std::shared_ptr<const BrdfTable> table = nullptr, Interp interp = Interp::Linear);
     const std::vector<Rgb>& get() const;
     bool computed() const { return done_.load(std::memory_order_acquire); }
     const BrdfPtr& brdf() const { return brdf_; }
+    const BrdfTable* table() const { return table_.get(); }
+    Interp interpolation() const { return interp_; }
 
 private:
     BrdfPtr brdf_;
+    std::shared_ptr<const BrdfTable> table_;
+    Interp interp_;
     mutable std::once_flag once_;
     mutable std::vector<Rgb> nodes_;
     mutable std::atomic<bool> done_{false};
@@ -84,6 +89,8 @@ struct FinishModel {
     // point, while `brdf` holds its single scattering plus any coat (DipoleSurfaceBrdf).
     std::shared_ptr<const Subsurface> subsurface;
     bool has_subsurface() const { return subsurface != nullptr; }
+    // With a subsurface: the coat's own BRDF (null: none), which `brdf` holds above the dipole.
+    BrdfPtr coat;
     // With a subsurface: a registered model whose BRDF is Ft(eta, cos_i)/pi
     // (TransmittanceBrdf); lit by the renderer's light loop it yields the transmitted
     // irradiance E_t at a point. Set by finish_model_with_subsurface, shared by copies, the
@@ -146,6 +153,10 @@ inline const FinishView* finish_view_of(int handle, const Vec3& n, const Vec3& t
 // A finish model around `brdf`, its directional albedo to be computed on first use
 // (AlbedoNodes).
 std::shared_ptr<FinishModel> make_finish_model(BrdfPtr brdf);
+// A finish model around a table read with `interp` (table_brdf): the renderer reads an isotropic
+// or half/difference table directly (FinishModel::iso_table, halfdiff_table), and the albedo is
+// the table's own.
+std::shared_ptr<FinishModel> make_finish_model(std::shared_ptr<const BrdfTable> table, Interp interp);
 
 // make_finish_model(make_brdf(spec)), memoised by spec while some model made from it lives:
 // finishes that repeat a spec share its BRDF and its albedo (computed once, if ever).
