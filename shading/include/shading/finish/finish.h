@@ -1,7 +1,7 @@
-// The adapter-facing side of the library: finish models that POV-Ray's FINISH refers
-// to by an integer handle, and the single function that turns a model into POV's
-// light contribution. Nothing here knows POV-Ray types; the patches convert vectors
-// and colours at the call site.
+// The facade POV-Ray's patches call for BRDF finishes: finish models that a FINISH refers to
+// by an integer handle, and what a model gives each kind of light and ray (direct lights,
+// fill lights, indirect light, glossy rays). Dipole finishes: dipole_finish.h. Nothing here
+// knows POV-Ray types; the patches convert vectors and colours at the call site.
 #pragma once
 
 #include <atomic>
@@ -37,7 +37,7 @@ private:
 // on first use (thread-safe, std::call_once) and shared by every finish model of that BRDF:
 // declaring a finish costs nothing until a render needs its albedo (indirect light, fill
 // lights, glossy-ray weights). Tables use their own (BrdfTable::directional_albedo), analytic
-// models a quadrature (~70 ms per distinct model; see finish.cpp).
+// models a quadrature.
 class AlbedoNodes {
 public:
     // `table`: the table behind `brdf` (read with `interp`), if it is one: its own albedo.
