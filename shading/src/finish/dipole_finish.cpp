@@ -13,10 +13,25 @@
 namespace shading {
 namespace {
 
+// A message for the user with one "dipole" in front (the library's own may carry it already).
+std::string prefixed(const std::string& message) {
+    return message.rfind("dipole", 0) == 0 ? message : "dipole: " + message;
+}
+
+// How the notes name a medium: its preset, or its coefficients.
+std::string medium_name(const DipoleParams& p, const Medium& m) {
+    auto rgb = [](const Rgb& c) {
+        char buf[96];
+        std::snprintf(buf, sizeof buf, "%g,%g,%g", c.r, c.g, c.b);
+        return std::string(buf);
+    };
+    return p.preset.empty() ? "dipole medium sigma_s' " + rgb(m.sigma_s_prime()) + " sigma_a " + rgb(m.sigma_a)
+                            : "dipole medium '" + p.preset + "'";
+}
+
 // The exact profile of `medium` from subsurface_profiles.ssp and, where found,
 // subsurface_slabs.ssp (without it thin objects use the multipole, and the statistics say so).
-std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const FindFile& find,
-                                                  std::vector<std::string>* warnings) {
+std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const FindFile& find) {
     const char *name = "subsurface_profiles.ssp", *slab_name = "subsurface_slabs.ssp";
     std::unique_ptr<FoundFile> file = find(name);
     if (!file)
@@ -42,9 +57,8 @@ std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const Fi
         if (slab_file) slabs = shared_profile_tables(slab_file->key, [&]() { return load(*slab_file, slab_name); });
         profile = std::make_shared<const ExactProfile>(medium, tables, slabs);
     } catch (const std::exception& e) {
-        throw std::invalid_argument(std::string("dipole: ") + e.what());
+        throw std::invalid_argument(prefixed(e.what()));
     }
-    for (const std::string& note : profile->notes()) warnings->push_back("dipole: " + note);
     return profile;
 }
 
@@ -84,8 +98,7 @@ private:
 
 void dipole_preset_check(const std::string& name) { (void)media_preset(name); }
 
-std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const FinishModel* coat, const FindFile& find,
-                                                std::vector<std::string>* warnings) {
+std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const FinishModel* coat, const FindFile& find) {
     if (p.sigma_s && p.sigma_s_prime)
         throw std::invalid_argument("dipole: give sigma_s (with anisotropy) or sigma_s_prime, not both.");
     if (p.preset.empty() && !(p.sigma_s || p.sigma_s_prime))
@@ -98,7 +111,7 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
         try {
             medium = media_preset(p.preset);
         } catch (const std::exception& e) {
-            throw std::invalid_argument(std::string("dipole: ") + e.what());
+            throw std::invalid_argument(prefixed(e.what()));
         }
     }
     if (p.sigma_s) medium.sigma_s = *p.sigma_s;
@@ -117,12 +130,17 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (p.error_bound) settings.max_angle = *p.error_bound;
     if (p.refine_levels) settings.max_levels = *p.refine_levels;
     if (p.thin_geometry) settings.thin = *p.thin_geometry;
-    std::shared_ptr<const RadialProfile> profile;
-    if (p.exact_profile) profile = exact_profile(medium, find, warnings);
+    std::shared_ptr<const ExactProfile> exact;
+    if (p.exact_profile) exact = exact_profile(medium, find);
+    std::shared_ptr<const RadialProfile> profile = exact;
     // the exact profile leaves single scattering to the BRDF; the dipole's Rd stands for it
     settings.single_scatter = p.single_scatter ? *p.single_scatter : p.exact_profile;
     auto subsurface = std::make_shared<const Subsurface>(medium, settings, FdrModel::JensenFit, profile);
-    return finish_model_with_subsurface(coat, subsurface);
+    std::shared_ptr<FinishModel> model = finish_model_with_subsurface(coat, subsurface);
+    if (exact)
+        for (const std::string& note : exact->notes())
+            model->notes.push_back(FinishNote{p.file, p.line, medium_name(p, medium) + ": " + note});
+    return model;
 }
 
 Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, DipoleObject& object, const Vec3& x,

@@ -1,5 +1,6 @@
 #include "shading/finish/finish.h"
 
+#include "shading/core/suggest.h"
 #include "shading/brdf/model_spec.h"
 #include "shading/brdf/models.h"
 #include "shading/subsurface/subsurface.h"
@@ -134,6 +135,24 @@ int finish_model_max_reflection_samples() {
         if (s && s->refs > 0 && s->owner) most = std::max(most, s->owner->reflection_samples);
     }
     return most;
+}
+
+std::vector<FinishNote> finish_model_notes() {
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    std::vector<FinishNote> notes;
+    for (int h = 1; h < r.next; ++h) {
+        const Slot* s = r.slot(h);
+        if (s && s->refs > 0 && s->owner)
+            for (const FinishNote& note : s->owner->notes)
+                if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
+    }
+    return notes;
+}
+
+std::string did_you_mean(const std::string& word, const std::vector<std::string>& names) {
+    const std::string meant = closest_name(word, names);
+    return meant.empty() ? meant : "did you mean '" + meant + "'?";
 }
 
 std::size_t finish_model_live_count() {
@@ -441,6 +460,12 @@ std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coa
         finish_model_register(make_finish_model(std::make_shared<TransmittanceBrdf>(s->model_ptr()))));
     m->subsurface = std::move(s);
     m->coat = coat_brdf;
+    return m;
+}
+
+std::shared_ptr<FinishModel> finish_model_with_coat(const FinishModel& dipole, const FinishModel* coat) {
+    std::shared_ptr<FinishModel> m = finish_model_with_subsurface(coat, dipole.subsurface);
+    m->notes = dipole.notes;
     return m;
 }
 

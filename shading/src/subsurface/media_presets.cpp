@@ -2,6 +2,8 @@
 // shading/tools/gen_presets.py from media_presets.csv; the lookup code is hand-written.
 #include "shading/subsurface/media_presets.h"
 
+#include "shading/core/suggest.h"
+
 #include <cctype>
 #include <limits>
 #include <stdexcept>
@@ -295,7 +297,10 @@ const MediumPreset* find_media_preset(std::string_view name) {
 
 Medium media_preset(std::string_view name, double mm_per_unit) {
     if (const MediumPreset* p = find_media_preset(name)) return p->medium(mm_per_unit);
-    std::string msg = "unknown medium '" + std::string(name) + "'; known:";
+    std::string msg = "unknown medium '" + std::string(name) + "'";
+    const std::string meant = closest_name(name, media_preset_names());
+    if (!meant.empty()) msg += "; did you mean '" + meant + "'?";
+    msg += meant.empty() ? "; known:" : " Known:";
     for (const MediumPreset& p : media_presets()) msg += std::string(" '") + p.name + "'";
     throw std::invalid_argument(msg);
 }

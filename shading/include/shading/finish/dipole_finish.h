@@ -29,6 +29,8 @@ struct DipoleParams {
     std::optional<bool> single_scatter;                   // default: on with the exact profile
     std::optional<bool> thin_geometry;
     bool exact_profile = true;                            // `profile exact` (default) or `profile dipole`
+    std::string file;                                     // where the block is written, for its notes
+    int line = 0;
 };
 
 // Whether `name` is a preset; throws std::invalid_argument naming the presets otherwise (the
@@ -37,11 +39,14 @@ void dipole_preset_check(const std::string& name);
 
 // The finish of a dipole block with `coat` (may be null) above it: finish_model_with_subsurface
 // of the medium, its profile (the exact one reads subsurface_profiles.ssp and, where `find`
-// locates it, subsurface_slabs.ssp) and settings. `warnings` gets what the renderer should show
-// as warnings (e.g. a g outside the exact profile's tables). Throws std::invalid_argument with a
-// complete message ("dipole: ...") for a block that cannot make a finish.
+// locates it, subsurface_slabs.ssp) and settings. What the renderer should tell the user about
+// the medium (e.g. a g outside the exact profile's tables) goes into the model's notes, naming
+// the medium, at the block's file and line: finish_model_notes() gives them for the finishes a
+// scene uses. Throws
+// std::invalid_argument with a complete message ("dipole: ...") for a block that cannot make a
+// finish.
 std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& params, const FinishModel* coat,
-                                                const FindFile& find, std::vector<std::string>* warnings);
+                                                const FindFile& find);
 
 // What the library asks of the renderer about one object with a dipole finish while it samples
 // the object's surface (once per object, from the render threads that reach it first).

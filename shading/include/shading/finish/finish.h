@@ -57,6 +57,14 @@ private:
     mutable std::atomic<bool> done_{false};
 };
 
+// Something the user should hear about a finish, and where the finish was written.
+struct FinishNote {
+    std::string file;
+    int line = 0;
+    std::string text;
+    bool operator==(const FinishNote& o) const { return file == o.file && line == o.line && text == o.text; }
+};
+
 struct FinishModel {
     BrdfPtr brdf;            // the reflection model (analytic or tabulated), 1/sr
     Rgb scale{1.0};          // user scale on the whole BRDF
@@ -91,6 +99,8 @@ struct FinishModel {
     bool has_subsurface() const { return subsurface != nullptr; }
     // With a subsurface: the coat's own BRDF (null: none), which `brdf` holds above the dipole.
     BrdfPtr coat;
+    // What the user should hear about this finish if a scene uses it (finish_model_notes).
+    std::vector<FinishNote> notes;
     // With a subsurface: a registered model whose BRDF is Ft(eta, cos_i)/pi
     // (TransmittanceBrdf); lit by the renderer's light loop it yields the transmitted
     // irradiance E_t at a point. Set by finish_model_with_subsurface, shared by copies, the
@@ -169,6 +179,10 @@ std::shared_ptr<FinishModel> make_finish_model_from_spec(const std::string& spec
 // The albedo is recomputed (lazily) for the sum.
 std::shared_ptr<FinishModel> finish_model_with_subsurface(const FinishModel* coat, std::shared_ptr<const Subsurface> s);
 
+// The dipole of `dipole` (a model with a subsurface) under a new `coat`: a brdf_model or brdf_table
+// written after the dipole in one finish. Keeps the dipole's notes.
+std::shared_ptr<FinishModel> finish_model_with_coat(const FinishModel& dipole, const FinishModel* coat);
+
 // The model's directional albedo at cos(theta) (linear between nodes; scale/tint not applied).
 Rgb finish_model_albedo(const FinishModel& model, double cos_theta);
 
@@ -231,6 +245,13 @@ inline const FinishModel* finish_model_get(int handle) {
     return handle == 0 ? nullptr : detail::finish_model_lookup(handle);
 }
 std::size_t finish_model_live_count();
+// The notes (FinishModel::notes) of the live finish models, each once, in the order of their
+// handles: after parsing, the finishes the scene's objects use.
+std::vector<FinishNote> finish_model_notes();
+
+// "did you mean 'X'?" for the name in `names` closest to a misspelt `word` (core/suggest.h
+// closest_name), or empty when none is close.
+std::string did_you_mean(const std::string& word, const std::vector<std::string>& names);
 // The largest `samples` (reflection_samples) among the live finish models, 0 if none: the
 // parser's estimate of what glossy rays will cost with area lights.
 int finish_model_max_reflection_samples();
