@@ -782,7 +782,7 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     from harness.core.paths import out_dir
-    ap = argparse.ArgumentParser(prog="python -m harness.reports.report",
+    ap = argparse.ArgumentParser(prog="brdf-report",
                                  description="Every finish's error against its expectation and cost against stock "
                                              "phong, as one HTML page (out/report/index.html).")
     ap.add_argument("--quick", action="store_true", help="CI-size renders, one timing pair, quick gonio grid")

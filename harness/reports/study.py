@@ -792,7 +792,7 @@ def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], shee
 # ---------------------------------------------------------------- command line
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.reports.study", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="brdf-study", description=__doc__.split("\n\n")[0])
     ap.add_argument("study", type=Path, nargs="?",
                     default=REPO_ROOT / "studies" / "example.toml" if in_checkout() else None,
                     help="the study file (TOML; default: studies/example.toml of the checkout)")
