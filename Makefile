@@ -145,7 +145,8 @@ $(POVDIR)/.configured: $(POVDIR)/.unpacked $(CONFIGURE_ARGS_FILE) | $(POVDIR)/.p
 # a newer libshading.a only needs a relink, which automake does not know about.
 $(FORK_BIN): $(POVDIR)/.configured $(POVDIR)/.patched $(LIBSHADING)
 	if [ -e $(POVDIR)/unix/povray ] && [ $(LIBSHADING) -nt $(POVDIR)/unix/povray ]; then rm -f $(POVDIR)/unix/povray; fi
-	$(MAKE) -C $(POVDIR) -j $(JOBS) >$(BUILD)/povray-build.log 2>&1 || { tail -40 $(BUILD)/povray-build.log; exit 1; }
+	@# The compiler's lines go to the log; the terminal gets a file counter (mk/povray-make.sh).
+	@MAKEFLAGS= bash mk/povray-make.sh $(POVDIR) $(JOBS) $(BUILD)/povray-build.log
 	@mkdir -p $(@D)
 	cp -p $(POVDIR)/unix/povray $@.tmp && mv -f $@.tmp $@  # a rename: works while renders run the old one
 
