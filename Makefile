@@ -188,7 +188,7 @@ $(VENV)/.installed: pyproject.toml | $(STAMPS)/deps
 	@touch $@
 
 # ---------------------------------------------------------------- use
-demo: all brdf-data ## Render scenes/demo.pov and print where the image is
+demo: all brdf-data venv ## Build the fork, the tables and the harness venv (the tutorial's), render scenes/demo.pov, print where the image is
 	@mkdir -p out
 	cd scenes && $(TOP)/$(FORK_BIN) +Idemo.pov +O$(TOP)/out/demo.png +W640 +H360 +A0.1 -D +WT$(JOBS) 2>$(TOP)/out/demo.log || { tail -20 $(TOP)/out/demo.log; exit 1; }
 	@grep -E 'Trace Time' out/demo.log | head -1 || true
