@@ -64,7 +64,7 @@ QUILT_ENV := QUILT_PATCHES=$(TOP)/patches QUILT_PC=.pc-brdf QUILT_NO_DIFF_TIMEST
 QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
 PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
 
-.PHONY: all help deps fetch shading fork brdf-data venv demo test test-security test-all test-unit test-py bench dg-compare \
+.PHONY: all help deps fetch shading fork brdf-data venv demo test test-security test-pages test-all test-unit test-py bench dg-compare \
         check-patches refresh-patches clean distclean \
         fuzz sanitize sanitize-unit sanitize-tsan sanitize-fork
 
@@ -200,11 +200,24 @@ test: all venv brdf-data ## Build if needed, run the unit (ctest) and fast Pytho
 
 # The security and data-safety checks too slow for `make test` (.ci/run runs both): every
 # entry point x path form against the fork and Debian's stock binary (the matrix is printed),
-# then the slow security tests: study fault runs, the whole parameter sweep, every .ssp damage class.
+# then the slow security tests: study fault runs, the whole parameter sweep, every .ssp damage
+# class; and the pages in a browser (PAGE_TESTS, below).
 SECURITY_SLOW_TESTS := tests/test_study_faults.py tests/test_param_sweep.py tests/test_ssp_cache.py
-test-security: all venv brdf-data ## The slow security checks: the whole path matrix (fork beside stock), study fault runs, the parameter sweep, .ssp damage
+test-security: all venv brdf-data $(STAMPS)/deps-browser ## The slow security checks: the whole path matrix (fork beside stock), study fault runs, the parameter sweep, .ssp damage; the pages in a browser
 	$(PY) -m harness.reports.path_matrix --jobs $(JOBS)
-	$(PY) -m pytest -q -m slow $(SECURITY_SLOW_TESTS)
+	$(PY) -m pytest -q -m slow $(SECURITY_SLOW_TESTS) $(PAGE_TESTS)
+
+# The study, regress and report pages in headless Chromium (Debian's, driven by Playwright from
+# the venv's test extra): no sideways scrolling at 1366/1400/1920 px, images loaded, text and
+# plot labels >= 10 px on screen; screenshots in build/screens/ (tests/test_pages_browser.py).
+BROWSER_APT_PACKAGES := chromium
+PAGE_TESTS := tests/test_pages_browser.py
+$(STAMPS)/deps-browser: mk/deps.sh | $(STAMPS)/deps
+	bash mk/deps.sh $(BROWSER_APT_PACKAGES)
+	@touch $@
+
+test-pages: all venv brdf-data $(STAMPS)/deps-browser ## The study, regress and report pages in headless Chromium at 1366/1400/1920 px (screenshots: build/screens/)
+	$(PY) -m pytest -q -m slow $(PAGE_TESTS)
 
 test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
