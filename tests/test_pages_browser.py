@@ -35,13 +35,13 @@ def pages(tmp_path_factory, fork):
     from harness.reports import regress, report, study
 
     root = tmp_path_factory.mktemp("pages")
-    # A study like the tutorial's: a table (its polar plot), a model with a long spec, a stock
-    # finish; two shapes under two lights.
+    # A study like the tutorial's and as wide as the example's: a table (its polar plot), a model
+    # with a long spec, a stock finish; three shapes under two lights.
     (root / "study.toml").write_text(textwrap.dedent("""\
         title = "Browser check: a table, a model and POV's phong"
         size = [144, 120]
-        shapes = ["sphere", "torus"]
-        lights = ["key", "area"]
+        shapes = ["sphere", "torus", "blob"]
+        lights = ["key", "rim"]
         [[material]]
         name = "gold, 1 deg table"
         table = "gold.brdf"
