@@ -8,8 +8,10 @@
 set -euo pipefail
 dir=$1 jobs=$2 log=$3 step=${4:-20}
 
-# A compile command: the compiler with -c and a source file (automake prints each in full).
-compile_re='^[^ ]*(g\+\+|gcc|c\+\+|cc|clang\+\+|clang)( .*)? -c( .*)? [^ ]+\.(cpp|cc|cxx|c)$'
+# A compile command: the compiler with -c and a source file. automake prints each in full, on a
+# line of its own that ends in "&&\" (its dependency tracking continues the command):
+#   g++ -DHAVE_CONFIG_H -I. ... -MT backend/parser/parse.o -MD -MP -MF $depbase.Tpo -c -o backend/parser/parse.o backend/parser/parse.cpp &&\
+compile_re='^([^#]*[ /])?(g\+\+|gcc|c\+\+|cc|clang\+\+|clang) .* -c( .*)? [^ ]+\.(cpp|cc|cxx|c)( &&\\)?$'
 total=$(make -C "$dir" -n 2>/dev/null | grep -cE "$compile_re" || true)
 
 tty=0

@@ -16,12 +16,18 @@ from harness.core.paths import REPO_ROOT
 SCRIPT = REPO_ROOT / "mk" / "povray-make.sh"
 N = 12
 
+# The compile rule as automake writes it (the command on a line of its own ending in "&&\\",
+# between its dependency-tracking lines), and one file compiled by a plain one-line rule.
 MAKEFILE = """\
 .PHONY: all
 SRCS := $(foreach i,$(shell seq 1 {n}),f$(i).cpp)
 all: prog
+f{n}.o: f{n}.cpp
+\tg++ -O0 -c -o $@ $<
 %.o: %.cpp
-\tg++ -DHAVE_CONFIG_H -I. -O0 -c -o $@ $<
+\tdepbase=`echo $@ | sed 's|\\.o$$||'`;\\
+\tg++ -DHAVE_CONFIG_H -I. -O0 -MT $@ -MD -MP -MF $$depbase.Tpo -c -o $@ $< &&\\
+\tmv -f $$depbase.Tpo $$depbase.Po
 prog: $(SRCS:.cpp=.o)
 \tg++ -o $@ $^ {link}
 """
@@ -52,7 +58,7 @@ def test_counts_files_and_names_the_log(tmp_path):
     # the compiler's own output went to the log only
     assert p.stdout == "" and "g++" not in p.stderr
     text = log.read_text()
-    assert text.count(" -c -o ") == N and "g++ -o prog" in text
+    assert text.count(" -c -o ") == N and text.count("&&\\\n") == N - 1 and "g++ -o prog" in text
     # nothing left to compile: no counter at all, status 0
     p = run(d, log)
     assert p.returncode == 0 and p.stderr == "", p.stderr
