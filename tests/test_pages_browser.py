@@ -3,7 +3,7 @@ windows none scrolls sideways, no element reaches past the window (a wide table 
 scroll inside its own box), every image loads, no text is under 10 px, every plot is shown at
 its natural size so its smallest label (recorded in the PNG by harness.core.plotting.save) is
 at least 10 px on screen, and no number breaks across lines. Headless Debian Chromium through
-Playwright (tests/pagelayout.py); full-page screenshots go to build/screens/PAGE-WIDTH.png.
+Playwright (tests/pagelayout.py); full-page screenshots go to build/screens/test/PAGE-WIDTH.png.
 
 Slow (renders a small study, two regression scenes and the report's model and table parts,
 about a minute on two cores): run by `make test-security` and `make test-pages`, which install
@@ -23,7 +23,7 @@ from tests import pagelayout
 
 pytestmark = pytest.mark.slow
 
-SCREENS = REPO_ROOT / "build" / "screens"
+SCREENS = REPO_ROOT / "build" / "screens" / "test"
 
 
 @pytest.fixture(scope="module")
