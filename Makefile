@@ -64,7 +64,7 @@ QUILT_ENV := QUILT_PATCHES=$(TOP)/patches QUILT_PC=.pc-brdf QUILT_NO_DIFF_TIMEST
 QUILT_REFRESH_ARGS := -p ab --no-timestamps --no-index --sort
 PATCHES := $(shell sed -e 's/[[:space:]].*//' -e '/^\#/d' -e '/^$$/d' patches/series 2>/dev/null | sed 's|^|patches/|')
 
-.PHONY: all help deps fetch shading fork brdf-data venv demo test test-security test-all test-unit test-py bench dg-compare \
+.PHONY: all help deps fetch shading fork brdf-data venv demo test test-security test-pages test-all test-unit test-py bench dg-compare \
         check-patches refresh-patches clean distclean \
         fuzz sanitize sanitize-unit sanitize-tsan sanitize-fork
 
@@ -145,7 +145,8 @@ $(POVDIR)/.configured: $(POVDIR)/.unpacked $(CONFIGURE_ARGS_FILE) | $(POVDIR)/.p
 # a newer libshading.a only needs a relink, which automake does not know about.
 $(FORK_BIN): $(POVDIR)/.configured $(POVDIR)/.patched $(LIBSHADING)
 	if [ -e $(POVDIR)/unix/povray ] && [ $(LIBSHADING) -nt $(POVDIR)/unix/povray ]; then rm -f $(POVDIR)/unix/povray; fi
-	$(MAKE) -C $(POVDIR) -j $(JOBS) >$(BUILD)/povray-build.log 2>&1 || { tail -40 $(BUILD)/povray-build.log; exit 1; }
+	@# The compiler's lines go to the log; the terminal gets a file counter (mk/povray-make.sh).
+	@MAKEFLAGS= bash mk/povray-make.sh $(POVDIR) $(JOBS) $(BUILD)/povray-build.log
 	@mkdir -p $(@D)
 	cp -p $(POVDIR)/unix/povray $@.tmp && mv -f $@.tmp $@  # a rename: works while renders run the old one
 
@@ -187,7 +188,7 @@ $(VENV)/.installed: pyproject.toml | $(STAMPS)/deps
 	@touch $@
 
 # ---------------------------------------------------------------- use
-demo: all brdf-data ## Render scenes/demo.pov and print where the image is
+demo: all brdf-data venv ## Build the fork, the tables and the harness venv (the tutorial's), render scenes/demo.pov, print where the image is
 	@mkdir -p out
 	cd scenes && $(TOP)/$(FORK_BIN) +Idemo.pov +O$(TOP)/out/demo.png +W640 +H360 +A0.1 -D +WT$(JOBS) 2>$(TOP)/out/demo.log || { tail -20 $(TOP)/out/demo.log; exit 1; }
 	@grep -E 'Trace Time' out/demo.log | head -1 || true
@@ -199,11 +200,24 @@ test: all venv brdf-data ## Build if needed, run the unit (ctest) and fast Pytho
 
 # The security and data-safety checks too slow for `make test` (.ci/run runs both): every
 # entry point x path form against the fork and Debian's stock binary (the matrix is printed),
-# then the slow security tests: study fault runs, the whole parameter sweep, every .ssp damage class.
+# then the slow security tests: study fault runs, the whole parameter sweep, every .ssp damage
+# class; and the pages in a browser (PAGE_TESTS, below).
 SECURITY_SLOW_TESTS := tests/test_study_faults.py tests/test_param_sweep.py tests/test_ssp_cache.py
-test-security: all venv brdf-data ## The slow security checks: the whole path matrix (fork beside stock), study fault runs, the parameter sweep, .ssp damage
+test-security: all venv brdf-data $(STAMPS)/deps-browser ## The slow security checks: the whole path matrix (fork beside stock), study fault runs, the parameter sweep, .ssp damage; the pages in a browser
 	$(PY) -m harness.reports.path_matrix --jobs $(JOBS)
-	$(PY) -m pytest -q -m slow $(SECURITY_SLOW_TESTS)
+	$(PY) -m pytest -q -m slow $(SECURITY_SLOW_TESTS) $(PAGE_TESTS)
+
+# The study, regress and report pages in headless Chromium (Debian's, driven by Playwright from
+# the venv's test extra): no sideways scrolling at 1366/1400/1920 px, images loaded, text and
+# plot labels >= 10 px on screen; screenshots in build/screens/ (tests/test_pages_browser.py).
+BROWSER_APT_PACKAGES := chromium
+PAGE_TESTS := tests/test_pages_browser.py
+$(STAMPS)/deps-browser: mk/deps.sh | $(STAMPS)/deps
+	bash mk/deps.sh $(BROWSER_APT_PACKAGES)
+	@touch $@
+
+test-pages: all venv brdf-data $(STAMPS)/deps-browser ## The study, regress and report pages in headless Chromium at 1366/1400/1920 px (screenshots: build/screens/)
+	$(PY) -m pytest -q -m slow $(PAGE_TESTS)
 
 test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)

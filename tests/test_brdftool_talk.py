@@ -124,3 +124,17 @@ def test_info_explains_reciprocity_in_words(tmp_path):
     assert 0.02 < float(m.group(3)) < 0.3  # a few times the 2 % noise of one sample
     exact = tool("info", tables.tabulated("lambert rho=0.5", step=15.0)).stdout
     assert "differ by up to 0 1/sr" in exact
+
+
+def test_a_missing_file_is_named_as_missing(tmp_path):
+    # was "nosuch.brdf: offset 0: expected a readable file, found No such file or directory" (issue 33)
+    for cmd in ("fit", "info", "check", "recommend"):
+        p = subprocess.run([str(brdftool()), cmd, "nosuch.brdf"], capture_output=True, text=True, cwd=tmp_path)
+        assert p.returncode == 1, (cmd, p.stderr)
+        assert p.stderr == f"brdftool {cmd}: nosuch.brdf: no such file\n", p.stderr
+    unreadable = tmp_path / "locked.brdf"
+    unreadable.write_bytes(b"x")
+    unreadable.chmod(0)  # root reads it anyway: run as nobody (setpriv, util-linux)
+    p = subprocess.run(["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", str(brdftool()), "info",
+                        str(unreadable)], capture_output=True, text=True)
+    assert p.returncode == 1 and p.stderr == f"brdftool info: {unreadable}: not readable (permission denied)\n", p.stderr

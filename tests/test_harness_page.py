@@ -42,7 +42,8 @@ def test_status_badge_and_no_contents_for_one_section(tmp_path):
 
 
 def test_cells(tmp_path):
-    assert page.format_cell(0.123456, None) == ("0.1235", "")
+    assert page.format_cell(0.123456, None) == ("0.1235", "num")  # td.num: never wraps
+    assert page.format_cell(12, None) == ("12", "num")
     assert page.format_cell(False, None) == ("FAIL", "text fail")
     assert page.format_cell(None, None) == ("", "")
     text, cls = page.format_cell(_png(tmp_path / "a.png"), tmp_path)
@@ -52,3 +53,29 @@ def test_cells(tmp_path):
 def test_slug():
     assert page.slug("Dipole subsurface vs stock (x)") == "dipole-subsurface-vs-stock-x"
     assert page.slug("???") == "x"
+
+
+def test_numbers_in_text_do_not_break(tmp_path):
+    # "2.757e-08" broke after its minus sign in a narrow column (issue 33): number-like words
+    # of text cells are kept on one line, the rest still wraps
+    text, cls = page.format_cell("rel 2.757e-08 of <1e-4>", None)
+    assert cls == "text"
+    assert text == ('rel <span class="nw">2.757e-08</span> of <span class="nw">&lt;1e-4&gt;</span>')
+    assert "td.num, span.nw { white-space: nowrap; }" in page.STYLE
+
+
+def test_plots_are_shown_at_natural_size(tmp_path):
+    from harness.core import plotting
+
+    plt = plotting.pyplot()
+    fig, ax = plt.subplots(figsize=(2, 1))
+    ax.plot([0, 1], [0, 1])
+    fig_png = plotting.save(fig, tmp_path / "fig.png")
+    render = _png(tmp_path / "render.png")
+    assert page.is_plot(fig_png) and not page.is_plot(render)
+    text, _ = page.format_cell(fig_png, tmp_path)
+    assert '<div class="plotbox">' in text and 'class="plot"' in text and "width=" not in text
+    text, _ = page.format_cell(render, tmp_path)
+    assert 'class="thumb"' in text
+    html = page.write_page(tmp_path / "p.html", "t", [page.Section("s", images=[("cap", fig_png)])]).read_text()
+    assert 'class="plot"' in html

@@ -86,7 +86,12 @@ def test_every_console_script_answers_help(fresh, script):
     venv, away = fresh
     p = run([venv / "bin" / script, "--help"], cwd=away, env=bare_env(away))
     assert p.returncode == 0, p.stderr[-2000:]
-    assert p.stdout.startswith("usage: "), p.stdout[:200]
+    # each script names itself (argparse's prog), not the module it runs (issue 33)
+    assert p.stdout.startswith(f"usage: {script} "), p.stdout[:200]
+    # and so does its usage error
+    p = run([venv / "bin" / script, "--no-such-option"], cwd=away, env=bare_env(away))
+    assert p.returncode == 2 and p.stderr.startswith(f"usage: {script} "), p.stderr[:300]
+    assert f"\n{script}: error: " in p.stderr, p.stderr[-300:]
 
 
 def test_outside_a_checkout_the_tools_say_where_they_looked(fresh):

@@ -20,6 +20,7 @@ as half has ``rel_rmse <= 4.88e-4`` (see :data:`HALF_REL_EPS`).
 from __future__ import annotations
 
 import os
+import textwrap
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Optional, Union
@@ -136,6 +137,10 @@ def compare(a: np.ndarray, b: np.ndarray, mask: Optional[np.ndarray] = None,
                       worst_pixel=(int(worst[0]), int(worst[1])), **nonfinite_counts(a64))
 
 
+#: Size of an error map in pixels (= CSS pixels on the pages, which show it at this size).
+MAP_SIZE = (330, 260)
+
+
 def error_map_png(path: Union[str, os.PathLike], a: np.ndarray, b: np.ndarray,
                   mask: Optional[np.ndarray] = None, relative: bool = False,
                   title: str = "", rel_floor: Optional[float] = None,
@@ -164,17 +169,22 @@ def error_map_png(path: Union[str, os.PathLike], a: np.ndarray, b: np.ndarray,
         err, cmap, label = d, "RdBu_r", f"{na} - {nb} (channel of largest |difference|)"
     shown = np.ma.masked_where(~np.asarray(mask, bool), err) if mask is not None else np.ma.asarray(err)
     shown = np.ma.masked_invalid(shown)
-    fig, ax = plt.subplots(figsize=(5, 4), dpi=100)
+    # Made at the size the pages show it (MAP_SIZE px, natural size): every label at least
+    # plotting.SMALL_PT, i.e. 10 px on screen; the title and the colour bar's label wrap.
+    fig, ax = plt.subplots(figsize=(MAP_SIZE[0] / plotting.DPI, MAP_SIZE[1] / plotting.DPI), dpi=plotting.DPI)
     cm = plt.get_cmap(cmap).with_extremes(bad="0.6")
     if relative:
         im = ax.imshow(shown, cmap=cm, interpolation="nearest", vmin=0.0)
     else:
         lim = float(np.max(np.abs(shown))) if shown.count() else 1.0
         im = ax.imshow(shown, cmap=cm, interpolation="nearest", vmin=-lim or -1.0, vmax=lim or 1.0)
-    fig.colorbar(im, ax=ax, label=label)
-    ax.set_title(title or label)
+    cb = fig.colorbar(im, ax=ax, fraction=0.08, pad=0.03)
+    cb.set_label("\n".join(textwrap.wrap(label, 34)), fontsize=plotting.SMALL_PT)
+    cb.ax.tick_params(labelsize=plotting.SMALL_PT)
+    cb.ax.yaxis.get_offset_text().set_fontsize(plotting.SMALL_PT)
+    ax.set_title("\n".join(textwrap.wrap(title or label, 40)), fontsize=8)
     ax.set_xticks([])
     ax.set_yticks([])
-    fig.tight_layout()
+    fig.tight_layout(pad=0.3)
     plotting.save(fig, path)
     return Path(path)

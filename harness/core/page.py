@@ -11,6 +11,12 @@ fragments. Everything given as plain data is escaped:
   :class:`Markup` (made by :func:`link`, :func:`code`, :func:`figure`, ...) is trusted HTML;
 * notes: plain text, paragraphs split at blank lines.
 
+Pages fit a 1366 px window without scrolling sideways: a table wider than the window scrolls
+inside its own box, numbers never break inside a value (numeric cells, and words with a digit
+in text, do not wrap), and plots (:func:`plot`) are shown at their natural size, the size their
+text was made for (:mod:`harness.core.plotting`), in a box that scrolls when the window is
+narrower than the plot. ``tests/test_pages_browser.py`` checks all this in Chromium.
+
 Links are written relative to the page's folder when they can be, so the folder can be moved.
 """
 
@@ -32,20 +38,28 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".svg", ".gif")
 STYLE = """
 body { font-family: sans-serif; margin: 1.5em; max-width: 90em; }
 table { border-collapse: collapse; margin-bottom: 1.2em; }
+div.tablebox, div.plotbox { max-width: 100%; overflow-x: auto; }
 th, td { border: 1px solid #bbb; padding: 0.25em 0.5em; text-align: right; vertical-align: top; }
 th { background: #eee; }
 td.text { text-align: left; }
-td.wide { text-align: left; max-width: 24em; }
+td.wide { text-align: left; max-width: 24em; overflow-wrap: anywhere; }
+td.num, span.nw { white-space: nowrap; }
 .pass { background: #dfd; } .fail { background: #fdd; } .bless { background: #def; }
 span.badge { font-size: 70%; padding: 0.1em 0.4em; border-radius: 0.3em; vertical-align: middle; }
 img.thumb { max-width: 200px; max-height: 200px; image-rendering: pixelated; }
-figure { display: inline-block; margin: 0.4em; vertical-align: top; }
+img.plot { max-width: none; }
+figure { display: inline-block; margin: 0.4em; vertical-align: top; max-width: 100%; }
 figure img { max-width: 100%; }
+figure img.plot { max-width: none; }
 img.wide { max-width: 100%; }
+div.gallery { display: flex; flex-wrap: wrap; gap: 0.4em 0.8em; align-items: flex-start; }
+div.gallery figure { margin: 0; }
+figcaption { font-size: 85%; }
 h2 { margin-top: 1.6em; border-bottom: 1px solid #ccc; }
+h3 { margin: 1.2em 0 0.3em; }
 p.note { max-width: 60em; }
-code { font-size: 85%; }
-pre { background: #f4f4f4; padding: 0.5em; white-space: pre-wrap; }
+code { font-size: 85%; overflow-wrap: anywhere; }
+pre { background: #f4f4f4; padding: 0.5em; white-space: pre-wrap; overflow-wrap: anywhere; }
 small { color: #444; }
 """
 
@@ -57,6 +71,20 @@ class Markup(str):
 def esc(value: Any) -> Markup:
     """Text made safe for HTML (Markup stays as it is)."""
     return value if isinstance(value, Markup) else Markup(html.escape(str(value)))
+
+
+def text_html(value: Any) -> Markup:
+    """Escaped text whose number-like words are kept on one line (``span.nw``): a word with a
+    digit and a character a browser may break after ("2.757e-08", "0.25/1/4", "-3%"), up to 32
+    characters; a browser would otherwise break "2.757e-08" after its minus sign."""
+    out = []
+    for part in re.split(r"(\s+)", str(value)):
+        e = html.escape(part)
+        if (part and len(part) <= 32 and any(c.isdigit() for c in part)
+                and any(c in "-+/:%,()[]" for c in part)):
+            e = '<span class="nw">' + e + '</span>'
+        out.append(e)
+    return Markup("".join(out))
 
 
 def join(*parts: Any, sep: str = "") -> Markup:
@@ -115,7 +143,30 @@ def image(path: PathLike, base: Optional[Path], alt: str = "", cls: Optional[str
 
 
 def figure(path: PathLike, base: Optional[Path], caption: str) -> Markup:
-    return tag("figure", image(path, base, caption, cls=None), tag("figcaption", caption))
+    """A captioned image; a figure of :mod:`harness.core.plotting` (a PNG with a ``min-text-px``
+    record) is shown as :func:`plot`, at its natural size."""
+    body = plot(path, base, caption) if is_plot(path) else image(path, base, caption, cls=None)
+    return tag("figure", body, tag("figcaption", caption))
+
+
+def is_plot(path: PathLike) -> bool:
+    """Whether ``path`` is a PNG written by :func:`harness.core.plotting.save` (it records
+    ``min-text-px``): a figure with text, to be shown at its natural size."""
+    p = Path(path)
+    if p.suffix.lower() != ".png":
+        return False
+    try:
+        with open(p, "rb") as f:
+            head = f.read(1 << 16)
+    except OSError:
+        return False
+    return b"tEXtmin-text-px\x00" in head or b"iTXtmin-text-px\x00" in head
+
+
+def plot(path: PathLike, base: Optional[Path], alt: str = "") -> Markup:
+    """A figure shown at its natural size (its text was sized for that), in a box that scrolls
+    sideways when the window is narrower; it links to the file."""
+    return tag("div", image(path, base, alt, cls="plot"), class_="plotbox")
 
 
 @dataclass(frozen=True)
@@ -134,16 +185,18 @@ def format_cell(value: Any, base: Optional[Path]) -> tuple[str, str]:
     if isinstance(value, Markup):
         return value, "text"
     if isinstance(value, (str, os.PathLike)) and os.fspath(value).lower().endswith(IMAGE_SUFFIXES):
+        if is_plot(value):
+            return plot(value, base, os.fspath(value)), "img"
         return image(value, base), "img"
     if isinstance(value, bool):
         return ("pass" if value else "FAIL"), ("text" if value else "text fail")
     if isinstance(value, float):
-        return f"{value:.4g}", ""
+        return f"{value:.4g}", "num"
     if isinstance(value, int):
-        return str(value), ""
+        return str(value), "num"
     if value is None:
         return "", ""
-    return html.escape(str(value)), "text"
+    return text_html(value), "text"
 
 
 def columns_of(rows: Sequence[Mapping[str, Any]], columns: Optional[Sequence[str]] = None) -> list[str]:
@@ -162,14 +215,15 @@ def table(rows: Sequence[Mapping[str, Any]], columns: Optional[Sequence[str]] = 
     if not rows:
         return Markup("")
     cols = columns_of(rows, columns)
-    parts = ["<table><thead><tr>" + "".join(f"<th>{esc(c)}</th>" for c in cols) + "</tr></thead><tbody>"]
+    parts = ['<div class="tablebox"><table><thead><tr>' + "".join(f"<th>{esc(c)}</th>" for c in cols)
+             + "</tr></thead><tbody>"]
     for r in rows:
         cells = []
         for c in cols:
             text, cls = format_cell(r.get(c, ""), base)
             cells.append(f'<td class="{cls}">{text}</td>' if cls else f"<td>{text}</td>")
         parts.append("<tr>" + "".join(cells) + "</tr>")
-    parts.append("</tbody></table>")
+    parts.append("</tbody></table></div>")
     return Markup("\n".join(parts))
 
 

@@ -88,7 +88,7 @@ def contact_sheet(images, m: float, path: Path) -> None:
                 ax.imshow(to_display(img))
                 ax.set_xticks([])
                 ax.set_yticks([])
-                ax.set_title(f"{d} · {g} · light {th:g}°", fontsize=7)
+                ax.set_title(f"{d} · {g} · light {th:g}°", fontsize=plotting.SMALL_PT)
     fig.suptitle(f"D × G at equal roughness m = {m:g} (F = 1); one linear exposure per light (peak = white)",
                  fontsize=9)
     fig.tight_layout()

@@ -169,7 +169,7 @@ def plot(points: Sequence[Point], path: Path, tol: float = 1e-6) -> Path:
                       label=f"{'RGB'[c]}, {'on' if on else 'off'}-node")
     a.set(xscale="log", yscale="log", xlabel="table value (stored or trilinear), 1/sr",
           ylabel="re-measured f = pixel / (π cos θi E), 1/sr", title="Round trip: table → render → f")
-    a.legend(fontsize=7, ncol=2)
+    a.legend(fontsize=plotting.SMALL_PT, ncol=2)
     a.grid(True, which="major", alpha=0.3)
     idx = np.arange(len(pts))
     on = np.array([p.on_node for p in pts])
@@ -182,7 +182,7 @@ def plot(points: Sequence[Point], path: Path, tol: float = 1e-6) -> Path:
     b.set(yscale="log", xlabel="geometry (on-node first, by θi, θr, φ)", ylabel="relative error, max over RGB",
           title="Relative error per geometry")
     b.set_ylim(1e-10, 1.0)
-    b.legend(fontsize=7, loc="center right")
+    b.legend(fontsize=plotting.SMALL_PT, loc="center right")
     b.grid(True, which="major", alpha=0.3)
     fig.tight_layout()
     plotting.save(fig, path)

@@ -391,7 +391,7 @@ def write_report(out_dir: Path, outcomes: Sequence[Outcome], *, bless: bool, wal
 # ---------------------------------------------------------------- command line
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.reports.regress", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="brdf-regress", description=__doc__.split("\n\n")[0])
     ap.add_argument("--bless", action="store_true", help="rewrite the golden images (and their [golden] records)")
     ap.add_argument("--scenes-dir", type=Path, default=SCENES_DIR, help="directory with regress.toml (default scenes/regress)")
     ap.add_argument("--out", type=Path, default=OUT_DIR, help="report directory (default out/regress)")

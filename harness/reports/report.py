@@ -388,11 +388,11 @@ def plot_speed_error(entries: Sequence[dict], path: Path) -> Optional[Path]:
         ax.scatter([e["ratio"] for e in sel], [e["rel_rmse"] for e in sel], s=44, marker=marker, c=colour, label=name)
         for e in sel:
             tag = f"eb {e['error_bound']:g}" if kind == "dipole" else e["label"].split("samples ")[-1]
-            ax.annotate(tag, (e["ratio"], e["rel_rmse"]), textcoords="offset points", xytext=(5, 3), fontsize=7)
+            ax.annotate(tag, (e["ratio"], e["rel_rmse"]), textcoords="offset points", xytext=(5, 3), fontsize=plotting.SMALL_PT)
     ax.set(xscale="log", yscale="log", xlabel="trace time / stock POV phong on the same scene",
            ylabel="rel-RMSE against the expectation", title="Speed vs error, every finish")
     ax.grid(True, which="both", alpha=0.25)
-    ax.legend(fontsize=7, loc="center right")
+    ax.legend(fontsize=plotting.SMALL_PT, loc="center right")
     fig.tight_layout()
     plotting.save(fig, path)
     return path
@@ -422,7 +422,7 @@ def plot_table_steps(entries: Sequence[dict], path: Path) -> Optional[Path]:
     a.set_title("Table vs the model it tabulates")
     b.set_title("Worst pixel")
     handles, labels = a.get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=3)
+    fig.legend(handles, labels, fontsize=plotting.SMALL_PT, loc="lower center", ncol=3)
     fig.tight_layout(rect=(0, 0.11, 1, 1))
     plotting.save(fig, path)
     return path
@@ -453,7 +453,7 @@ def plot_layouts(rows: Sequence[dict], path: Path) -> Optional[Path]:
     for r in rows:  # resolution labels along the first material's curves
         if r["material"] == mats[0]:
             ax.annotate(r["resolution"], (r["bytes"] / 1e6, r["rel_rmse"]), textcoords="offset points",
-                        xytext=(4, 4), fontsize=6, color="0.3")
+                        xytext=(4, 4), fontsize=plotting.SMALL_PT, color="0.3")
     for k, mat in enumerate(mats):  # legend: colour = material, style = layout
         ax.plot([], [], "-", color=colours[k % len(colours)], label=mat)
     for _, _, style, name in series:
@@ -461,12 +461,12 @@ def plot_layouts(rows: Sequence[dict], path: Path) -> Optional[Path]:
     ax.axhline(GOAL_REL_RMSE, color="0.4", lw=0.8, ls=":")
     ax.axvline(GOAL_BYTES / 1e6, color="0.4", lw=0.8, ls=":")
     ax.annotate(f"goal: ≤ {GOAL_REL_RMSE:.1%} at ≤ {GOAL_BYTES / 1e6:g} MB", (GOAL_BYTES / 1e6, GOAL_REL_RMSE),
-                textcoords="offset points", xytext=(4, 4), fontsize=7, color="0.3")
+                textcoords="offset points", xytext=(4, 4), fontsize=plotting.SMALL_PT, color="0.3")
     ax.set(xscale="log", yscale="log", xlabel="bytes per RGB table (MB)",
            ylabel="rel-RMSE of the sphere against the numpy model",
            title="Table layouts for narrow lobes: isotropic (θi, θr, φ) vs half/difference (θh, θd, φd)")
     ax.grid(True, which="both", alpha=0.25)
-    ax.legend(fontsize=6, ncol=2, loc="lower left")
+    ax.legend(fontsize=plotting.SMALL_PT, ncol=2, loc="lower left")
     fig.tight_layout()
     plotting.save(fig, path)
     return path
@@ -492,7 +492,7 @@ def plot_dipole(entries: Sequence[dict], width: int, path: Path) -> Optional[Pat
           title="Half-lit slab: profile error (grey: excluded)")
     a.set_ylim(-0.1, 0.1)
     a.grid(True, alpha=0.3)
-    a.legend(fontsize=7, loc="lower left")
+    a.legend(fontsize=plotting.SMALL_PT, loc="lower left")
     for kind, colour, marker in (("dipole", "tab:red", "^-"), ("stock subsurface", "0.4", "x--")):
         sel = [e for e in dips if e["kind"] == kind and e.get("ratio")]
         if not sel:
@@ -500,12 +500,12 @@ def plot_dipole(entries: Sequence[dict], width: int, path: Path) -> Optional[Pat
         b.plot([e["ratio"] for e in sel], [e["rms_lit"] for e in sel], marker, color=colour, label=kind)
         for e in sel:
             tag = f"eb {e['error_bound']:g}" if kind == "dipole" else e["label"].split("samples ")[-1]
-            b.annotate(tag, (e["ratio"], e["rms_lit"]), textcoords="offset points", xytext=(4, 3), fontsize=7)
+            b.annotate(tag, (e["ratio"], e["rms_lit"]), textcoords="offset points", xytext=(4, 3), fontsize=plotting.SMALL_PT)
     b.set(xscale="log", yscale="log", xlabel="trace time / stock phong on the slab",
           ylabel="rms profile error / lit level", title="Speed vs error on the slab")
     b.grid(True, which="both", alpha=0.25)
     if b.lines:
-        b.legend(fontsize=7)
+        b.legend(fontsize=plotting.SMALL_PT)
     fig.tight_layout()
     plotting.save(fig, path)
     return path
@@ -526,7 +526,7 @@ def plot_edge(entries: Sequence[dict], path: Path) -> Optional[Path]:
     a.set(xlabel="x (mm), shadow for x > 0", ylabel="(render − closed form) / lit plateau (green)",
           title="Shadow edge: profile error", xlim=(-6, 6))
     a.grid(True, alpha=0.3)
-    a.legend(fontsize=7, loc="lower left")
+    a.legend(fontsize=plotting.SMALL_PT, loc="lower left")
     for kind, colour, marker in (("edge fork", "tab:red", "^"), ("edge stock", "0.35", "x")):
         sel = [e for e in edges if e["kind"] == kind]
         if not sel:
@@ -535,12 +535,12 @@ def plot_edge(entries: Sequence[dict], path: Path) -> Optional[Path]:
                   label="fork dipole" if kind == "edge fork" else "stock subsurface")
         for e in sel:
             tag = e["label"].split(", ", 1)[1].split(" (")[0]
-            b.annotate(tag, (e["trace_s"], e["max_lit"]), textcoords="offset points", xytext=(4, 3), fontsize=6.5)
+            b.annotate(tag, (e["trace_s"], e["max_lit"]), textcoords="offset points", xytext=(4, 3), fontsize=plotting.SMALL_PT)
     b.axhline(0.03, color="tab:green", lw=0.8, ls="--", label="3 % (issue 15)")
     b.set(xscale="log", yscale="log", xlabel="trace time (s, one thread, precompute included)",
           ylabel="max profile error / lit plateau", title="Speed vs error on the edge scene")
     b.grid(True, which="both", alpha=0.25)
-    b.legend(fontsize=7)
+    b.legend(fontsize=plotting.SMALL_PT)
     fig.tight_layout()
     plotting.save(fig, path)
     return path
@@ -782,7 +782,7 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     from harness.core.paths import out_dir
-    ap = argparse.ArgumentParser(prog="python -m harness.reports.report",
+    ap = argparse.ArgumentParser(prog="brdf-report",
                                  description="Every finish's error against its expectation and cost against stock "
                                              "phong, as one HTML page (out/report/index.html).")
     ap.add_argument("--quick", action="store_true", help="CI-size renders, one timing pair, quick gonio grid")

@@ -253,7 +253,7 @@ def plot_totals(rows: Sequence[Row], path: Path) -> Path:
     plt = plotting.pyplot()
     gs = sorted({r.case.g for r in rows})
     etas = sorted({r.case.eta for r in rows})
-    fig, axes = plt.subplots(1, len(gs), figsize=(4.2 * len(gs), 3.4), squeeze=False)
+    fig, axes = plt.subplots(1, len(gs), figsize=(4.0 * len(gs), 3.4), squeeze=False)
     for ax, g in zip(axes[0], gs):
         for eta, col in zip(etas, ("C0", "C1", "C2", "C3")):
             sub = [r for r in rows if r.case.g == g and r.case.eta == eta]
@@ -266,7 +266,8 @@ def plot_totals(rows: Sequence[Row], path: Path) -> Path:
         ax.set_ylabel("total reflectance vs Monte Carlo (%)")
         ax.set_title(f"g = {g:g}")
         ax.set_ylim(-40, 70)
-    axes[0][0].legend(fontsize=6)
+    axes[0][0].legend(fontsize=plotting.SMALL_PT)
+    fig.tight_layout()
     plotting.save(fig, path)
     return path
 
@@ -274,8 +275,13 @@ def plot_totals(rows: Sequence[Row], path: Path) -> Path:
 def plot_profiles(rows: Sequence[Row], path: Path) -> Path:
     plt = plotting.pyplot()
     pick = [r for r in rows if r.case.eta == 1.33 and r.case.alpha_prime in (0.5, 0.99)] or list(rows[:4])
-    fig, axes = plt.subplots(1, len(pick), figsize=(3.6 * len(pick), 3.2), squeeze=False)
-    for ax, r in zip(axes[0], pick):
+    # at most three panels a row: the page shows the figure at its natural size (<= 1100 px)
+    ncols = min(3, len(pick))
+    nrows = -(-len(pick) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(3.6 * ncols, 3.2 * nrows), squeeze=False)
+    for ax in axes.flat[len(pick):]:
+        ax.set_visible(False)
+    for ax, r in zip(axes.flat, pick):
         x = np.array(r.rd_radii)
         ax.loglog(x, r.mc_rd, "k.", label="MC, multiple")
         ax.loglog(x, r.exact_rd, "C0-", label="exact (tables)")
@@ -283,8 +289,10 @@ def plot_profiles(rows: Sequence[Row], path: Path) -> Path:
         ax.loglog(x, r.dipole_rd, "C3--", label="dipole")
         ax.set_title(r.case.label(), fontsize=8)
         ax.set_xlabel("r (mfp')")
-    axes[0][0].set_ylabel("Rd(r) per mfp'^2")
-    axes[0][0].legend(fontsize=6)
+    for row in axes:
+        row[0].set_ylabel("Rd(r) per mfp'^2")
+    axes[0][0].legend(fontsize=plotting.SMALL_PT)
+    fig.tight_layout()
     plotting.save(fig, path)
     return path
 

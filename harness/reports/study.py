@@ -701,6 +701,10 @@ def _write_outputs(study: Study, cells: list[Cell], results: Sequence[Any], out_
     return summary
 
 
+#: Incidence angles of the study page's polar plots: three panels, 990 px, shown at that size.
+POLAR_ANGLES = (0, 45, 75)
+
+
 def polar_plots(study: Study, out_dir: Path) -> dict[str, Path]:
     """Polar plots (:mod:`harness.tools.brdfplot`) of every table material (name -> PNG); a
     failed plot is reported and skipped."""
@@ -710,7 +714,7 @@ def polar_plots(study: Study, out_dir: Path) -> dict[str, Path]:
             continue
         try:
             plots[m.name] = brdfplot.plot(Path(m.table), out_dir / f"{page.slug(m.name, 40)}.png",
-                                          theta_i=(0, 45, 75), title=m.name)
+                                          theta_i=POLAR_ANGLES, title=m.name)
         except files.WriteError:
             raise
         except (OSError, ValueError) as e:
@@ -743,15 +747,15 @@ def contact_sheet(study: Study, cells: Sequence[Cell], path: Path) -> Path:
             if isinstance(c.result, runner.RenderResult):
                 ax.imshow(exr.to_display(c.result.image), interpolation="nearest")
             else:
-                ax.text(0.5, 0.5, "render failed", ha="center", va="center", color="red", fontsize=8,
+                ax.text(0.5, 0.5, "render failed", ha="center", va="center", color="red", fontsize=9,
                         transform=ax.transAxes)
             ax.set_xticks([])
             ax.set_yticks([])
-            ax.set_xlabel(_cell_caption(c), fontsize=6.5, labelpad=2)
+            ax.set_xlabel(_cell_caption(c), fontsize=plotting.SMALL_PT, labelpad=2)
             if i == 0:
-                ax.set_title(f"{s} / {l}", fontsize=8)
+                ax.set_title(f"{s} / {l}", fontsize=8.5)
             if j == 0:
-                ax.set_ylabel(m.name, fontsize=7.5, rotation=0, ha="right", va="center", labelpad=4)
+                ax.set_ylabel(m.name, fontsize=8, rotation=0, ha="right", va="center", labelpad=4)
     fig.suptitle(study.title, fontsize=10)
     fig.tight_layout(rect=(0, 0, 1, 0.98))
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -760,7 +764,9 @@ def contact_sheet(study: Study, cells: Sequence[Cell], path: Path) -> Path:
 
 def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], sheet: Path, path: Path,
                summary: dict[str, Any]) -> Path:
-    """index.html: the grid with per-image trace time and memory, each material's text, polar plots."""
+    """index.html: one block per material (its text, then its renders, each with trace time and
+    memory, and its polar plot, side by side where the window is wide enough and wrapped where
+    it is not), then the contact sheet. Renders and plots are shown at their natural size."""
     base = path.parent
     cols = [(s, l) for s in study.shapes for l in study.lights]
     by_key = {(c.material.name, c.shape, c.light): c for c in cells}
@@ -769,30 +775,36 @@ def write_html(study: Study, cells: Sequence[Cell], plots: dict[str, Path], shee
              f"{summary['wall_seconds']:.1f} s wall, backend: {summary['backend']}; {summary['failed']} failed. "
              f"Study file: {study.path}. Under each image: POV-Ray's own trace time (seconds) and the "
              "renderer's peak memory (its peak resident set size in MiB, measured for the renderer alone: "
-             "harness.core.runner).")
-    rows = []
+             "harness.core.runner). Table materials add their BRDF in the plane of incidence (1/sr).")
+    blocks: list[page.Markup] = []
     for m in study.materials:
-        row: dict[str, Any] = {"material": page.Cell(page.join(page.bold(m.name), page.tag("br"), page.small(m.describe),
-                                                               page.tag("br"), page.code(m.pov)), "wide")}
+        figs = []
         for s, l in cols:
             c = by_key[(m.name, s, l)]
             if c.png:
-                row[f"{s} / {l}"] = page.join(page.image(c.png, base, c.material.name, cls=None,
-                                                         width=min(study.width, 200)),
-                                              page.tag("br"), _cell_caption(c))
+                img = page.image(c.png, base, f"{m.name}: {s} / {l}", cls=None)
+                figs.append(page.tag("figure", img, page.tag("figcaption", f"{s} / {l}", page.tag("br"),
+                                                             page.text_html(_cell_caption(c)))))
             else:
-                row[f"{s} / {l}"] = page.Cell(str(c.result)[:400], "fail")
+                figs.append(page.tag("figure", page.tag("figcaption", f"{s} / {l}: ", page.tag("span", str(c.result)[:400],
+                                                                                               class_="fail"))))
         plot = plots.get(m.name)
-        row["BRDF, plane of incidence (1/sr)"] = page.image(plot, base, m.name, cls=None, width=420) if plot else ""
-        rows.append(row)
-    sections = [page.Section("Materials", rows, anchor="materials"),
-                page.Section("Contact sheet", anchor="sheet", body=[page.image(sheet, base, "contact sheet", cls="wide")])]
+        if plot:
+            figs.append(page.tag("figure", page.plot(plot, base, f"{m.name}: BRDF, plane of incidence"),
+                                 page.tag("figcaption", "BRDF, plane of incidence (1/sr)")))
+        blocks.append(page.tag("div",
+                               page.tag("h3", m.name, id=f"m-{page.slug(m.name)}"),
+                               page.tag("p", page.small(m.describe), page.tag("br"), page.code(m.pov)),
+                               page.tag("div", *figs, class_="gallery"),
+                               class_="material"))
+    sections = [page.Section("Materials", anchor="materials", body=blocks),
+                page.Section("Contact sheet", anchor="sheet", body=[page.plot(sheet, base, "contact sheet")])]
     return page.write_page(path, study.title, sections, notes, contents=False)
 
 # ---------------------------------------------------------------- command line
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.reports.study", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="brdf-study", description=__doc__.split("\n\n")[0])
     ap.add_argument("study", type=Path, nargs="?",
                     default=REPO_ROOT / "studies" / "example.toml" if in_checkout() else None,
                     help="the study file (TOML; default: studies/example.toml of the checkout)")

@@ -23,6 +23,7 @@ import argparse
 import math
 import subprocess
 import sys
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional, Sequence
@@ -157,7 +158,7 @@ def plot(table: Path, out: Path, theta_i: Sequence[float] = (0, 30, 60, 75),
         ax.set_thetamax(90)
         ax.set_rlim(0, rmax)
         ax.set_rticks(ticks)
-        ax.set_yticklabels(labels, fontsize=7)
+        ax.set_yticklabels(labels, fontsize=plotting.SMALL_PT)
         ax.set_rlabel_position(-45)
         for c in chans:
             name, colour = CHANNELS[c] if f.shape[-1] == 3 else ("table", "black")
@@ -174,13 +175,34 @@ def plot(table: Path, out: Path, theta_i: Sequence[float] = (0, 30, 60, 75),
                     arrowprops={"arrowstyle": "->", "color": "0.35", "lw": 1.0})
         ax.set_title(f"θi = {s.theta_i:g}°", pad=2)
         ax.text(0.5, -0.02, "BRDF (1/sr)" + (", log scale" if log else ""), transform=ax.transAxes,
-                ha="center", va="top", fontsize=7)
+                ha="center", va="top", fontsize=plotting.SMALL_PT)
     handles, labels_ = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels_, loc="lower center", ncol=min(6, len(labels_)), fontsize=7)
-    fig.suptitle(title or f"{table.name}: plane of incidence (left: backward, right: forward)"
-                 + (f"\n{description[:90]}" if description else ""), fontsize=9)
-    fig.tight_layout(rect=(0, 0.08, 1, 0.93))
+    fig.legend(handles, labels_, loc="lower center", ncol=min(6, len(labels_)), fontsize=plotting.SMALL_PT)
+    heading = title or f"{table.name}: plane of incidence (left: backward, right: forward)"
+    lines = heading_lines(heading, description if title is None else "", fig.get_figwidth() * fig.dpi, TITLE_PT)
+    # The figure grows by the heading's extra lines, so the panels keep their size and no line is cut.
+    line_in = TITLE_PT * 1.35 / 72
+    extra = max(0, len(lines) - 2) * line_in
+    fig.set_figheight(fig.get_figheight() + extra)
+    fig.suptitle("\n".join(lines), fontsize=TITLE_PT)
+    top = 1 - (len(lines) * line_in + 0.12) / fig.get_figheight()
+    fig.tight_layout(rect=(0, 0.3 / fig.get_figheight(), 1, top))
     return plotting.save(fig, out)
+
+
+#: The heading's point size.
+TITLE_PT = 9
+
+
+def heading_lines(heading: str, description: str, width_px: float, pt: float) -> list[str]:
+    """The heading and the table's description, wrapped (never cut) to ``width_px`` at ``pt``
+    points: a line holds about width / (0.55 em) characters, less a margin."""
+    em_px = pt * 100 / 72  # plotting.DPI
+    chars = max(20, int(width_px * 0.92 / (0.55 * em_px)))
+    lines = textwrap.wrap(heading, chars) or [""]
+    if description:
+        lines += textwrap.wrap(description, chars, break_long_words=True, break_on_hyphens=False)
+    return lines
 
 
 def _log_radius(v: np.ndarray, lo: int) -> np.ndarray:

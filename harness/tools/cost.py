@@ -195,7 +195,7 @@ def ensure_costs(path: Path = COSTS_PATH, force: bool = False, repeat: int = 5,
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.tools.cost", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="brdf-cost", description=__doc__.split("\n\n")[0])
     ap.add_argument("--force", action="store_true", help="measure again even if the file exists")
     ap.add_argument("--repeat", type=int, default=5, help="alternating pairs per family (default 5)")
     ap.add_argument("-o", "--output", type=Path, default=COSTS_PATH, help=f"cost file (default {COSTS_PATH})")

@@ -86,7 +86,7 @@ def write_merl(path: Path, f: np.ndarray) -> Path:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.tools.merl_synth", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="brdf-merl-synth", description=__doc__.split("\n\n")[0])
     ap.add_argument("out", type=Path)
     ap.add_argument("--kd", default="0.25,0.08,0.05", help="Lambertian albedo r,g,b")
     ap.add_argument("--rho-s", type=float, default=0.7, help="lobe scale (kd + rho_s <= 1)")

@@ -79,7 +79,7 @@ def image_errors(table: Path, rows: Sequence[Row], size: int = 128) -> None:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.tools.recommend", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="brdf-recommend", description=__doc__.split("\n\n")[0])
     ap.add_argument("table", type=Path)
     ap.add_argument("--tol", type=float, default=0.05, help="largest acceptable table error (default 0.05)")
     ap.add_argument("--model", default="all", help="family pattern for brdftool (default all)")

@@ -472,7 +472,7 @@ TEST(TableFile, FileHelpersRoundTrip) {
         load_table_file(path);
         FAIL();
     } catch (const TableError& e) {
-        EXPECT_NE(std::string(e.what()).find(path + ": offset 0: expected a readable file"), std::string::npos);
+        EXPECT_EQ(std::string(e.what()), path + ": no such file");
     }
 }
 

@@ -298,7 +298,13 @@ void require_regular_file(const std::string& path, const std::string& name) {
 
 std::vector<uint8_t> read_file_bytes(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw_table_error(path, 0, "a readable file", std::strerror(errno));
+    if (!in) {
+        // Nothing was read, so no offset: say what is wrong with the name, as a person would.
+        const int e = errno;
+        if (e == ENOENT) throw TableError(path + ": no such file");
+        if (e == EACCES) throw TableError(path + ": not readable (permission denied)");
+        throw TableError(path + ": cannot be opened (" + std::strerror(e) + ")");
+    }
     require_regular_file(path, path);
     in.seekg(0, std::ios::end);
     std::streamoff len = in.tellg();
