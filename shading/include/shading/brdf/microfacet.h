@@ -23,18 +23,6 @@
 
 namespace shading {
 
-// Cosines below this are clamped where they divide: a direction within 1e-12 rad of the
-// horizon. The models' 1/cos factors would otherwise overflow to Inf for denormal cosines;
-// pov_weight() multiplies by cos_i, so nothing a renderer shows changes.
-constexpr double kCosFloor = 1e-12;
-
-// ---------------------------------------------------------------- geometry helpers
-
-// Half vector of a reflection pair; wo + wi != 0 whenever both are above the surface.
-inline Vec3 half_vector(const Vec3& wo, const Vec3& wi) { return normalize(wo + wi); }
-// Mirror w about the unit vector h: 2 (w.h) h - w.
-inline Vec3 reflect_about(const Vec3& w, const Vec3& h) { return h * (2.0 * dot(w, h)) - w; }
-
 // ---------------------------------------------------------------- survey D (unnormalised)
 // cos_h = N.H = cos(alpha). Each returns 0 for cos_h <= 0 (microfacet facing away).
 

@@ -18,12 +18,6 @@ namespace shading {
 
 // ---------------------------------------------------------------- pure formulas
 
-// Mirror direction of w about the normal +z.
-inline Vec3 mirror_z(const Vec3& w) { return {-w.x, -w.y, w.z}; }
-
-// Lambert: f = rho / pi.
-inline Rgb lambert_f(const Rgb& rho) { return rho * kInvPi; }
-
 // POV phong (POV-Ray 3.7 Trace::ComputePhongColour): contribution P (R.L)^n per unit light
 // colour, R = view direction mirrored about N, no cos factor. cos_rl = R.L.
 inline double phong_pov_contribution(double cos_rl, double phong_size) {
