@@ -1,11 +1,18 @@
 // The default importance sampler every Brdf inherits, and the directional albedo by
 // quadrature over it (brdf.h).
 #include "shading/brdf/brdf.h"
+#include "shading/brdf/spec_args.h"
 
 #include <algorithm>
 #include <cmath>
 
 namespace shading {
+
+std::string Brdf::spec(int digits) const {
+    SpecWriter w(digits);
+    write_spec(w);
+    return w.str();
+}
 
 Vec3 sample_cosine_power(const Vec3& axis, double e, double u1, double u2) {
     // Inverse CDF of (e+1) cos^e sin over [0, pi/2]: cos theta = (1 - u1)^(1/(e+1)).

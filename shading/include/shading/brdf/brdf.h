@@ -14,6 +14,8 @@
 
 namespace shading {
 
+class SpecWriter;  // spec_args.h
+
 // What a model may compute once for a viewer direction and reuse for every light at one
 // shading point (FinishView), e.g. the Smith masking of wo. Opaque to everyone but the model.
 struct BrdfViewCache {
@@ -32,10 +34,12 @@ public:
     virtual bool anisotropic() const { return false; }
     // Short human-readable description with parameters, e.g. "lambert(rho=0.5)".
     virtual std::string describe() const = 0;
-    // The make_brdf() spec of this model: parsed back, it gives a model with the same f,
-    // sample and pdf to the bit. Empty for BRDFs make_brdf() does not build (tables,
-    // subsurface).
-    virtual std::string spec() const { return {}; }
+    // The make_brdf() spec of this model (model_spec.h), written by write_spec(). With
+    // digits = 0 it parses back into a model with the same f, sample and pdf to the bit;
+    // digits > 0 rounds every number to that many significant digits. Empty for BRDFs
+    // make_brdf() does not build (tables, subsurface).
+    std::string spec(int digits = 0) const;
+    virtual void write_spec(SpecWriter& w) const { (void)w; }
 
     // Albedo of the Lambertian base the model includes (f contains base / pi), per channel;
     // zero for models without one. The rest, f - base/pi, is the model's glossy part.

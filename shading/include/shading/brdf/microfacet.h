@@ -206,11 +206,17 @@ public:
     double smith_lambda_beckmann_equivalent(const Vec3& w) const;
     // Unit half vector with density normalized(h.z) * h.z.
     Vec3 sample_h(double u1, double u2) const;
+    // The m that from_m() was given, 0 if built from the native parameter: a spec writes
+    // that m back (m_equivalent() need not return it to the bit).
+    double given_m() const { return given_m_; }
+    // "m" for Beckmann, else the native parameter's key: "n1", "n2", "n3".
+    const char* native_key() const;
 
 private:
     struct GaussianTable;
     DKind kind_;
     double param_;
+    double given_m_ = 0;
     double norm_ = 1.0;  // Gaussian normalisation constant (gaussian_norm)
     std::shared_ptr<const GaussianTable> table_;
     std::shared_ptr<const SmithLambdaTable> smith_;  // Blinn and Gaussian only
@@ -232,6 +238,7 @@ struct FresnelTerm {
     Rgb f0{0.04};         // Schlick: reflectance at normal incidence
     Rgb eval(double cos_d) const;
     std::string describe() const;
+    void write_spec(SpecWriter& w) const;  // "f=... [its keys]"
 };
 
 struct Microfacet final : Brdf {
@@ -244,6 +251,7 @@ struct Microfacet final : Brdf {
 
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
     std::string describe() const override;
+    void write_spec(SpecWriter& w) const override;
     double geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const;
     // Smith: Lambda(wo) once per viewer (the lights of a shading point share it).
     void prepare_view(const Vec3& wo, BrdfViewCache* cache) const override;
