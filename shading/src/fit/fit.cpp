@@ -16,9 +16,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "shading/brdf/lafortune.h"
+#include "shading/brdf/lambert.h"
 #include "shading/brdf/microfacet.h"
 #include "shading/brdf/model_spec.h"
-#include "shading/brdf/models.h"
+#include "shading/brdf/oren_nayar.h"
+#include "shading/brdf/ward.h"
 #include "shading/core/optimize.h"
 #include "shading/core/bytes.h"
 #include "shading/core/format.h"
@@ -220,6 +223,9 @@ struct SpecOut {
     bool clamped = false;
 };
 
+// Significant digits of a fit's printed spec (fit.h).
+constexpr int kSpecDigits = 6;
+
 enum class ScaleMode { Free, One, OneMinusKd };
 
 struct Family {
@@ -259,16 +265,23 @@ bool clamp_sum(Rgb& a, Rgb& b) {
             b[c] /= s;
             clamped = true;
         }
-        const double printed_a = std::stod(detail::fmt(a[c]));
-        if (printed_a + std::stod(detail::fmt(b[c])) > 1.0) b[c] = 1.0 - printed_a - 1e-6;
+        const double printed_a = std::stod(detail::fmt(a[c], kSpecDigits));
+        if (printed_a + std::stod(detail::fmt(b[c], kSpecDigits)) > 1.0) b[c] = 1.0 - printed_a - 1e-6;
     }
     return clamped;
 }
 
-void add_rgb_params(std::vector<FitParam>& out, const std::string& name, const Rgb& v) {
-    out.push_back({name + "_r", v.r, -1});
-    out.push_back({name + "_g", v.g, -1});
-    out.push_back({name + "_b", v.b, -1});
+// The printed spec of a fitted model, and its linear parameters (per channel) as it states them.
+SpecOut spec_out(const Brdf& model, bool clamped, const std::vector<std::pair<std::string, Rgb>>& linear) {
+    SpecOut o;
+    o.spec = model.spec(kSpecDigits);
+    o.clamped = clamped;
+    for (const auto& [name, v] : linear) {
+        o.linear.push_back({name + "_r", v.r, -1});
+        o.linear.push_back({name + "_g", v.g, -1});
+        o.linear.push_back({name + "_b", v.b, -1});
+    }
+    return o;
 }
 
 const std::vector<double> kRoughStarts = {0.03, 0.07, 0.15, 0.3, 0.6};
@@ -277,7 +290,6 @@ Family microfacet_family(const std::string& d, const std::string& g, const std::
     Family fam;
     fam.name = "microfacet d=" + d + " g=" + g + " f=" + f;
     fam.shape.push_back({"m", 1e-3, 1.0, true, kRoughStarts});
-    const std::string head = "microfacet d=" + d + " g=" + g;
     if (f == "dielectric") fam.shape.push_back({"eta", 1.01, 4.0, false, {1.5}});
     if (f == "conductor") {
         for (const char* c : {"n_r", "n_g", "n_b"}) fam.shape.push_back({c, 0.03, 10.0, true, {0.5}});
@@ -317,30 +329,35 @@ Family microfacet_family(const std::string& d, const std::string& g, const std::
         }
         return out;
     };
-    fam.spec = [head, f](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef) {
-        SpecOut o;
-        Rgb kd = kd_in, rho;
-        std::string fpart;
+    fam.spec = [dk, gk, f](const Vector& x, const Rgb& kd, const std::vector<Rgb>& coef) {
+        Microfacet m;  // normalised form
+        m.d = NormalDistribution::from_m(dk, x[0]);
+        m.g = gk;
+        m.kd = kd;
+        std::vector<std::pair<std::string, Rgb>> linear;
         if (f == "none" || f == "dielectric") {
-            rho = coef[0];
-            fpart = f == "none" ? " f=none" : " f=dielectric eta=" + detail::fmt(x[1]);
-        } else if (f == "schlick") {
-            Rgb f0;
-            for (int c = 0; c < 3; ++c) {
-                rho[c] = coef[0][c] + coef[1][c];
-                f0[c] = rho[c] > 0 ? coef[0][c] / rho[c] : 0.04;
+            m.rho_s = coef[0];
+            if (f == "dielectric") {
+                m.fresnel.kind = FKind::Dielectric;
+                m.fresnel.eta = x[1];
             }
-            fpart = " f=schlick f0=" + detail::fmt(f0);
-            add_rgb_params(o.linear, "f0", f0);
+        } else if (f == "schlick") {
+            m.fresnel.kind = FKind::Schlick;
+            for (int c = 0; c < 3; ++c) {
+                m.rho_s[c] = coef[0][c] + coef[1][c];
+                m.fresnel.f0[c] = m.rho_s[c] > 0 ? coef[0][c] / m.rho_s[c] : 0.04;
+            }
+            linear.push_back({"f0", m.fresnel.f0});
         } else {
-            rho = Rgb(1.0) - kd;
-            fpart = " f=conductor n=" + detail::fmt(Rgb(x[1], x[2], x[3])) + " k=" + detail::fmt(Rgb(x[4], x[5], x[6]));
+            m.rho_s = Rgb(1.0) - kd;
+            m.fresnel.kind = FKind::Conductor;
+            m.fresnel.n = Rgb(x[1], x[2], x[3]);
+            m.fresnel.k = Rgb(x[4], x[5], x[6]);
         }
-        o.clamped = clamp_sum(kd, rho);
-        o.spec = head + " m=" + detail::fmt(x[0]) + fpart + " kd=" + detail::fmt(kd) + " rho_s=" + detail::fmt(rho);
-        add_rgb_params(o.linear, "kd", kd);
-        add_rgb_params(o.linear, "rho_s", rho);
-        return o;
+        const bool clamped = clamp_sum(m.kd, m.rho_s);
+        linear.push_back({"kd", m.kd});
+        linear.push_back({"rho_s", m.rho_s});
+        return spec_out(m, clamped, linear);
     };
     return fam;
 }
@@ -363,15 +380,14 @@ Family ward_family(bool aniso) {
         b->ay = aniso ? x[1] : x[0];
         return std::vector<BrdfPtr>{b};
     };
-    fam.spec = [aniso](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef) {
-        const std::string rough = aniso ? " ax=" + detail::fmt(x[0]) + " ay=" + detail::fmt(x[1]) : " alpha=" + detail::fmt(x[0]);
-        SpecOut o;
-        Rgb kd = kd_in, rho = coef[0];
-        o.clamped = clamp_sum(kd, rho);
-        o.spec = "ward rho_d=" + detail::fmt(kd) + " rho_s=" + detail::fmt(rho) + rough;
-        add_rgb_params(o.linear, "rho_d", kd);
-        add_rgb_params(o.linear, "rho_s", rho);
-        return o;
+    fam.spec = [aniso](const Vector& x, const Rgb& kd, const std::vector<Rgb>& coef) {
+        Ward w;
+        w.rho_d = kd;
+        w.rho_s = coef[0];
+        w.ax = x[0];
+        w.ay = aniso ? x[1] : x[0];
+        const bool clamped = clamp_sum(w.rho_d, w.rho_s);
+        return spec_out(w, clamped, {{"rho_d", w.rho_d}, {"rho_s", w.rho_s}});
     };
     return fam;
 }
@@ -388,12 +404,11 @@ Family oren_nayar_family() {
         return std::vector<BrdfPtr>{b};
     };
     fam.spec = [](const Vector& x, const Rgb&, const std::vector<Rgb>& coef) {
-        SpecOut o;
-        Rgb rho = coef[0];
-        o.clamped = clamp_to_one(rho);
-        o.spec = "oren_nayar rho=" + detail::fmt(rho) + " sigma=" + detail::fmt(x[0]);
-        add_rgb_params(o.linear, "rho", rho);
-        return o;
+        OrenNayar on;
+        on.rho = coef[0];
+        on.sigma = x[0];
+        const bool clamped = clamp_to_one(on.rho);
+        return spec_out(on, clamped, {{"rho", on.rho}});
     };
     return fam;
 }
@@ -403,13 +418,10 @@ Family lambert_family() {
     fam.name = "lambert";
     fam.nbases = 0;
     fam.bases = [](const Vector&) { return std::vector<BrdfPtr>{}; };
-    fam.spec = [](const Vector&, const Rgb& kd_in, const std::vector<Rgb>&) {
-        SpecOut o;
-        Rgb kd = kd_in;
-        o.clamped = clamp_to_one(kd);
-        o.spec = "lambert rho=" + detail::fmt(kd);
-        add_rgb_params(o.linear, "rho", kd);
-        return o;
+    fam.spec = [](const Vector&, const Rgb& kd, const std::vector<Rgb>&) {
+        Lambert l(kd);
+        const bool clamped = clamp_to_one(l.rho);
+        return spec_out(l, clamped, {{"rho", l.rho}});
     };
     return fam;
 }
@@ -450,21 +462,18 @@ Family lafortune_family(int k) {
         }
         return out;
     };
-    fam.spec = [k, lobe](const Vector& x, const Rgb& kd_in, const std::vector<Rgb>& coef) {
-        SpecOut o;
-        Rgb kd = kd_in;
-        o.clamped = clamp_to_one(kd);
-        o.spec = "lafortune kd=" + detail::fmt(kd);
-        add_rgb_params(o.linear, "kd", kd);
+    fam.spec = [k, lobe](const Vector& x, const Rgb& kd, const std::vector<Rgb>& coef) {
+        Lafortune lf;
+        lf.kd = kd;
+        const bool clamped = clamp_to_one(lf.kd);
+        std::vector<std::pair<std::string, Rgb>> linear = {{"kd", lf.kd}};
         for (int j = 0; j < k; ++j) {
-            Rgb w = coef[j];
-            for (int c = 0; c < 3; ++c) w[c] = std::min(w[c], 100.0);
-            const Lafortune::Lobe l = lobe(x, j);
-            o.spec += " lobe=" + detail::fmt(l.cx) + "," + detail::fmt(l.cy) + "," + detail::fmt(l.cz) + "," + detail::fmt(l.n) + "," + detail::fmt(w.r) + "," +
-                      detail::fmt(w.g) + "," + detail::fmt(w.b);
-            add_rgb_params(o.linear, "lobe" + std::to_string(j + 1) + "_w", w);
+            Lafortune::Lobe l = lobe(x, j);
+            for (int c = 0; c < 3; ++c) l.weight[c] = std::min(coef[j][c], 100.0);  // the spec's bound
+            lf.lobes.push_back(l);
+            linear.push_back({"lobe" + std::to_string(j + 1) + "_w", l.weight});
         }
-        return o;
+        return spec_out(lf, clamped, linear);
     };
     return fam;
 }
@@ -864,18 +873,12 @@ double CostTable::cost_of(const std::string& family) const {
 
 CostTable builtin_costs() {
     CostTable t;
-    // Rough trace-time ratios vs stock phong on a shading-bound sphere (harness/tools/cost.py
-    // measures the real ones): closed forms are cheap, Smith with tabulated Lambda and the
-    // Gaussian's acos cost more, conductor Fresnel is complex arithmetic.
-    t.entries = {{"lambert", 1.00},
-                 {"oren_nayar", 1.05},
-                 {"ward", 1.10},
-                 {"lafortune", 1.10},
-                 {"microfacet d=blinn", 1.15},
-                 {"microfacet d=tr", 1.15},
-                 {"microfacet d=beckmann", 1.20},
-                 {"microfacet d=gaussian", 1.30},
-                 {"table", 1.25}};
+    // Rough trace-time ratios vs stock phong on a shading-bound sphere, each model's own
+    // (ModelEntry::costs); harness/tools/cost.py measures the real ones. Closed forms are
+    // cheap; a table lookup costs about a Beckmann microfacet.
+    for (const ModelEntry& m : registered_models())
+        for (const auto& c : m.costs) t.entries.push_back(c);
+    t.entries.push_back({"table", 1.25});
     return t;
 }
 
