@@ -11,8 +11,9 @@ namespace shading {
 
 namespace {
 using detail::fmt;
-const SpecKey kRho{"rho", "<rgb>", "albedo", 0, 1};
-const SpecKey kSigma{"sigma", "<x>", "facet slope std. deviation in radians", 0, kPi / 2};
+constexpr SpecKey kRho{"rho", "<rgb>", "albedo", 0, 1};
+constexpr SpecKey kSigma{"sigma", "<x>", "facet slope std. deviation in radians", 0, kPi / 2};
+constexpr SpecParam<OrenNayar> kParams[] = {{kRho, &OrenNayar::rho}, {kSigma, &OrenNayar::sigma}};
 }  // namespace
 
 Rgb OrenNayar::f(const Vec3& wo, const Vec3& wi) const {
@@ -20,25 +21,13 @@ Rgb OrenNayar::f(const Vec3& wo, const Vec3& wi) const {
     return lambert_f(rho) * oren_nayar_factor(wo, wi, oren_nayar_a(sigma), oren_nayar_b(sigma));
 }
 std::string OrenNayar::describe() const { return "oren_nayar(rho=" + fmt(rho) + " sigma=" + fmt(sigma) + ")"; }
-void OrenNayar::write_spec(SpecWriter& w) const { w.model("oren_nayar").rgb(kRho.name, rho).number(kSigma.name, sigma); }
+void OrenNayar::write_spec(SpecWriter& w) const { write_params(w, "oren_nayar", kParams, *this); }
 
 ModelEntry oren_nayar_model() {
-    ModelEntry m;
-    m.name = "oren_nayar";
-    m.summary = "Oren-Nayar 1994 qualitative model, f = rho/pi (A + B max(0,cos dphi) sin a tan b)";
-    m.keys = [] {
-        const OrenNayar d;
-        return help_line(kRho, fmt(d.rho)) + help_line(kSigma, fmt(d.sigma));
-    };
-    m.make = [](SpecArgs& a) -> BrdfPtr {
-        auto b = std::make_shared<OrenNayar>();
-        b->rho = a.rgb(kRho, b->rho);
-        b->sigma = a.number(kSigma, b->sigma);
-        return b;
-    };
-    m.examples = {{"oren_nayar rho=0.7,0.5,0.3 sigma=0.4"}, {"oren_nayar rho=1 sigma=1.5"}};
-    m.costs = {{"oren_nayar", 1.05}};
-    return m;
+    return plain_model_entry("oren_nayar",
+                             "Oren-Nayar 1994 qualitative model, f = rho/pi (A + B max(0,cos dphi) sin a tan b)", kParams,
+                             {{"oren_nayar rho=0.7,0.5,0.3 sigma=0.4"}, {"oren_nayar rho=1 sigma=1.5"}},
+                             {{"oren_nayar", 1.05}});
 }
 
 }  // namespace shading

@@ -11,9 +11,12 @@ namespace shading {
 
 namespace {
 using detail::fmt;
-const SpecKey kKd{"kd", "<rgb>", "diffuse albedo (Lambertian base)", 0, 1};
-const SpecKey kKs{"ks", "<rgb>", "specular albedo at normal incidence", 0, 1, "; kd+ks <= 1"};
-const SpecKey kExponent{"n", "<x>", "exponent", 0, 1e6};
+constexpr SpecKey kKd{"kd", "<rgb>", "diffuse albedo (Lambertian base)", 0, 1};
+constexpr SpecKey kKs{"ks", "<rgb>", "specular albedo at normal incidence", 0, 1, "; kd+ks <= 1"};
+constexpr SpecKey kExponent{"n", "<x>", "exponent", 0, 1e6};
+constexpr SpecParam<PhongNormalized> kParams[] = {
+    {kKd, &PhongNormalized::kd}, {kKs, &PhongNormalized::ks}, {kExponent, &PhongNormalized::n}};
+void check_energy(const SpecArgs& a, const PhongNormalized& b) { a.check_sum("kd", b.kd, "ks", b.ks); }
 }  // namespace
 
 Rgb PhongNormalized::f(const Vec3& wo, const Vec3& wi) const {
@@ -23,28 +26,12 @@ Rgb PhongNormalized::f(const Vec3& wo, const Vec3& wi) const {
 std::string PhongNormalized::describe() const {
     return "phong_normalized(kd=" + fmt(kd) + " ks=" + fmt(ks) + " n=" + fmt(n) + ")";
 }
-void PhongNormalized::write_spec(SpecWriter& w) const {
-    w.model("phong_normalized").rgb(kKd.name, kd).rgb(kKs.name, ks).number(kExponent.name, n);
-}
+void PhongNormalized::write_spec(SpecWriter& w) const { write_params(w, "phong_normalized", kParams, *this); }
 
 ModelEntry phong_normalized_model() {
-    ModelEntry m;
-    m.name = "phong_normalized";
-    m.summary = "modified Phong (Lafortune & Willems 1994), f = kd/pi + ks (n+2)/(2pi) cos^n(alpha)";
-    m.keys = [] {
-        const PhongNormalized d;
-        return help_line(kKd, fmt(d.kd)) + help_line(kKs, fmt(d.ks)) + help_line(kExponent, fmt(d.n));
-    };
-    m.make = [](SpecArgs& a) -> BrdfPtr {
-        auto b = std::make_shared<PhongNormalized>();
-        b->kd = a.rgb(kKd, b->kd);
-        b->ks = a.rgb(kKs, b->ks);
-        b->n = a.number(kExponent, b->n);
-        a.check_sum("kd", b->kd, "ks", b->ks);
-        return b;
-    };
-    m.examples = {{"phong_normalized kd=0.3 ks=0.6 n=35"}, {"phong_normalized kd=0,0.1,0.2 ks=1,0.9,0.8 n=0"}};
-    return m;
+    return plain_model_entry(
+        "phong_normalized", "modified Phong (Lafortune & Willems 1994), f = kd/pi + ks (n+2)/(2pi) cos^n(alpha)", kParams,
+        {{"phong_normalized kd=0.3 ks=0.6 n=35"}, {"phong_normalized kd=0,0.1,0.2 ks=1,0.9,0.8 n=0"}}, {}, check_energy);
 }
 
 }  // namespace shading

@@ -12,36 +12,20 @@ namespace shading {
 namespace {
 using detail::fmt;
 
-const SpecKey kPovDiffuse{"diffuse", "<rgb>", "POV diffuse (Lambert rho)", 0, 1};
-const SpecKey kPhong{"phong", "<rgb>", "P", 0, 100};
-const SpecKey kPhongSize{"phong_size", "<x>", "n", 0, 1e6};
-const SpecKey kSpecular{"specular", "<rgb>", "S", 0, 100};
-const SpecKey kRoughness{"roughness", "<x>", "r", 1e-6, 1};
+constexpr SpecKey kPovDiffuse{"diffuse", "<rgb>", "POV diffuse (Lambert rho)", 0, 1};
+constexpr SpecKey kPhong{"phong", "<rgb>", "P", 0, 100};
+constexpr SpecKey kPhongSize{"phong_size", "<x>", "n", 0, 1e6};
+constexpr SpecKey kSpecular{"specular", "<rgb>", "S", 0, 100};
+constexpr SpecKey kRoughness{"roughness", "<x>", "r", 1e-6, 1};
+constexpr SpecParam<PhongPov> kPhongParams[] = {
+    {kPhong, &PhongPov::phong}, {kPhongSize, &PhongPov::phong_size}, {kPovDiffuse, &PhongPov::diffuse}};
+constexpr SpecParam<BlinnPov> kBlinnParams[] = {
+    {kSpecular, &BlinnPov::specular}, {kRoughness, &BlinnPov::roughness}, {kPovDiffuse, &BlinnPov::diffuse}};
 
-const char* const kNotReciprocal =
-    "POV adds the highlight with no cosine, so only cos_i divides it (f = c / (pi cos_i))";
-
-// Either highlight's entry: its colour key, its exponent key, then POV's diffuse.
-template <class M>
-ModelEntry highlight_entry(const char* name, const char* summary, const SpecKey& colour, Rgb M::*c,
-                           const SpecKey& exponent, double M::*e) {
-    ModelEntry m;
-    m.name = name;
-    m.summary = summary;
-    m.keys = [&colour, c, &exponent, e] {
-        const M d;
-        return help_line(colour, fmt(d.*c)) + help_line(exponent, fmt(d.*e)) + help_line(kPovDiffuse, fmt(d.diffuse));
-    };
-    m.make = [&colour, c, &exponent, e](SpecArgs& a) -> BrdfPtr {
-        auto b = std::make_shared<M>();
-        M& x = *b;
-        x.*c = a.rgb(colour, x.*c);
-        x.*e = a.number(exponent, x.*e);
-        x.diffuse = a.rgb(kPovDiffuse, x.diffuse);
-        return b;
-    };
+// Both are registered not reciprocal, for this reason.
+ModelEntry not_reciprocal(ModelEntry m) {
     m.reciprocal = false;
-    m.not_reciprocal_because = kNotReciprocal;
+    m.not_reciprocal_because = "POV adds the highlight with no cosine, so only cos_i divides it (f = c / (pi cos_i))";
     return m;
 }
 }  // namespace
@@ -54,9 +38,7 @@ Rgb PhongPov::f(const Vec3& wo, const Vec3& wi) const {
 std::string PhongPov::describe() const {
     return "phong_pov(phong=" + fmt(phong) + " phong_size=" + fmt(phong_size) + " diffuse=" + fmt(diffuse) + ")";
 }
-void PhongPov::write_spec(SpecWriter& w) const {
-    w.model("phong_pov").rgb(kPhong.name, phong).number(kPhongSize.name, phong_size).rgb(kPovDiffuse.name, diffuse);
-}
+void PhongPov::write_spec(SpecWriter& w) const { write_params(w, "phong_pov", kPhongParams, *this); }
 
 Rgb BlinnPov::f(const Vec3& wo, const Vec3& wi) const {
     if (wo.z <= 0 || wi.z <= 0) return Rgb(0.0);
@@ -67,27 +49,23 @@ std::string BlinnPov::describe() const {
     return "blinn_pov(specular=" + fmt(specular) + " roughness=" + fmt(roughness) + " diffuse=" + fmt(diffuse) +
            ")";
 }
-void BlinnPov::write_spec(SpecWriter& w) const {
-    w.model("blinn_pov").rgb(kSpecular.name, specular).number(kRoughness.name, roughness).rgb(kPovDiffuse.name, diffuse);
-}
+void BlinnPov::write_spec(SpecWriter& w) const { write_params(w, "blinn_pov", kBlinnParams, *this); }
 
+// phong_pov's albedo is at most d + 2P/(n+1) (f cos does not depend on theta_i). Each model's
+// first example is energy bounded, its second not.
 ModelEntry phong_pov_model() {
-    ModelEntry m = highlight_entry("phong_pov",
-                                   "POV-Ray `phong P phong_size n`: contribution P (R.L)^n, f = d/pi + P (R.L)^n / (pi cos_i)",
-                                   kPhong, &PhongPov::phong, kPhongSize, &PhongPov::phong_size);
-    // Albedo d + 2P/(n+1) at most (f cos does not depend on theta_i): bounded here, not in the second.
-    m.examples = {{"phong_pov phong=0.3 phong_size=40 diffuse=0.5"},
-                  {"phong_pov phong=5,2,1 phong_size=2 diffuse=0.1,0.2,0.3", false}};
-    return m;
+    return not_reciprocal(plain_model_entry(
+        "phong_pov", "POV-Ray `phong P phong_size n`: contribution P (R.L)^n, f = d/pi + P (R.L)^n / (pi cos_i)",
+        kPhongParams,
+        {{"phong_pov phong=0.3 phong_size=40 diffuse=0.5"}, {"phong_pov phong=5,2,1 phong_size=2 diffuse=0.1,0.2,0.3", false}},
+        {}));
 }
 
 ModelEntry blinn_pov_model() {
-    ModelEntry m = highlight_entry(
+    return not_reciprocal(plain_model_entry(
         "blinn_pov", "POV-Ray `specular S roughness r`: contribution S (N.H)^(1/r), f = d/pi + S (N.H)^(1/r) / (pi cos_i)",
-        kSpecular, &BlinnPov::specular, kRoughness, &BlinnPov::roughness);
-    m.examples = {{"blinn_pov specular=0.4 roughness=0.05 diffuse=0.3,0.4,0.5"},
-                  {"blinn_pov specular=20 roughness=0.5", false}};
-    return m;
+        kBlinnParams, {{"blinn_pov specular=0.4 roughness=0.05 diffuse=0.3,0.4,0.5"}, {"blinn_pov specular=20 roughness=0.5", false}},
+        {}));
 }
 
 }  // namespace shading

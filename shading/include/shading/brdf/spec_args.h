@@ -1,13 +1,18 @@
-// What a model's own file uses to read its spec (SpecArgs, SpecKey) and to write it back
-// (SpecWriter). make_brdf() and the registry of models are in model_spec.h.
+// What a model's own file uses to read its spec (SpecArgs, SpecKey), to write it back
+// (SpecWriter), and, for a model whose keys are all numbers and colours, to make its help,
+// parser and writer from one table (SpecParam). make_brdf() and the registry: model_spec.h.
 #pragma once
 
+#include <cstddef>
 #include <initializer_list>
+#include <memory>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "shading/brdf/model_spec.h"
+#include "shading/core/format.h"
 #include "shading/core/vec.h"
 
 namespace shading {
@@ -87,5 +92,62 @@ private:
     int digits_;
     std::string s_;
 };
+
+// ---------------------------------------------------------------- plain models
+
+// One plain key of a model, a number or a colour, and the member it sets. A model whose keys
+// are all plain lists them in one table, in help order; its help, its parser and its spec
+// writer are all made from that table, so the three cannot drift apart.
+template <class M>
+struct SpecParam {
+    constexpr SpecParam(const SpecKey& k, Rgb M::*c) : key(k), colour(c) {}
+    constexpr SpecParam(const SpecKey& k, double M::*x) : key(k), number(x) {}
+    SpecKey key;
+    Rgb M::*colour = nullptr;
+    double M::*number = nullptr;
+};
+
+// The registry entry of a plain model (defaults read from a default-constructed M); `check`,
+// if given, runs once every key is read (e.g. an energy bound over two keys).
+template <class M, std::size_t N>
+ModelEntry plain_model_entry(const char* name, const char* summary, const SpecParam<M> (&params)[N],
+                             std::vector<ModelExample> examples, std::vector<std::pair<std::string, double>> costs,
+                             void (*check)(const SpecArgs&, const M&) = nullptr) {
+    ModelEntry m;
+    m.name = name;
+    m.summary = summary;
+    m.keys = [&params] {
+        const M d;
+        std::string s;
+        for (const SpecParam<M>& p : params) s += help_line(p.key, p.colour ? detail::fmt(d.*p.colour) : detail::fmt(d.*p.number));
+        return s;
+    };
+    m.make = [&params, check](SpecArgs& a) -> BrdfPtr {
+        auto b = std::make_shared<M>();
+        for (const SpecParam<M>& p : params) {
+            if (p.colour)
+                (*b).*p.colour = a.rgb(p.key, (*b).*p.colour);
+            else
+                (*b).*p.number = a.number(p.key, (*b).*p.number);
+        }
+        if (check) check(a, *b);
+        return b;
+    };
+    m.examples = std::move(examples);
+    m.costs = std::move(costs);
+    return m;
+}
+
+// A plain model's spec: its name, then every key of its table.
+template <class M, std::size_t N>
+void write_params(SpecWriter& w, const char* name, const SpecParam<M> (&params)[N], const M& m) {
+    w.model(name);
+    for (const SpecParam<M>& p : params) {
+        if (p.colour)
+            w.rgb(p.key.name, m.*p.colour);
+        else
+            w.number(p.key.name, m.*p.number);
+    }
+}
 
 }  // namespace shading
