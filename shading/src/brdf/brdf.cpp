@@ -58,12 +58,9 @@ double Brdf::pdf(const Vec3& wo, const Vec3& wi) const {
     return 0.25 * p;
 }
 
-// Directional albedo at theta_o by multiple importance sampling over stratified grids of five
-// components: the four of the default sampler (brdf.h: cosine-weighted, and cos^e lobes about
-// the mirror direction with e = 30, 300, 3000) and the model's own sampler (Brdf::sample: the
-// microfacet D or Ward lobe, long tails included), combined with the balance heuristic (equal
-// counts: each sample weighs f cos / the mean of the five pdfs). Measured against a 1200 x 2400
-// midpoint rule (harness.reference.models): Lambert exact, glossy parts within 0.3 % below 80 deg.
+// The four components of the default sampler cover any lobe; the model's own sampler adds the
+// microfacet D's or Ward's long tails. Equal counts, balance heuristic: each sample weighs
+// f cos / the mean of the five pdfs. Accuracy: MODELS.md 6.
 Rgb quadrature_albedo(const Brdf& b, double theta_o) {
     constexpr int n = 48;  // strata per axis and component
     const Vec3 wo(std::sin(theta_o), 0.0, std::cos(theta_o));

@@ -26,9 +26,7 @@ struct BrdfViewCache {
 class Brdf {
 public:
     virtual ~Brdf() = default;
-    // BRDF value in 1/sr, cos(theta_i) EXCLUDED; wo, wi in the local frame (see vec.h).
-    // Must return finite, non-negative values for every pair of unit vectors,
-    // and zero when either direction is below the surface (z <= 0).
+    // The BRDF under the convention above, for every pair of unit vectors.
     virtual Rgb f(const Vec3& wo, const Vec3& wi) const = 0;
     // True if the model depends on the azimuth of the tangent frame (needs +x).
     virtual bool anisotropic() const { return false; }
@@ -39,6 +37,7 @@ public:
     // digits > 0 rounds every number to that many significant digits. Empty for BRDFs
     // make_brdf() does not build (tables, subsurface).
     std::string spec(int digits = 0) const;
+    // The model's name and keys; every model make_brdf() builds writes them.
     virtual void write_spec(SpecWriter& w) const { (void)w; }
 
     // Albedo of the Lambertian base the model includes (f contains base / pi), per channel;

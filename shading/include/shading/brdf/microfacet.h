@@ -8,8 +8,7 @@
 //        f = rho_s * D * G * F / (4 (N.L)(N.V)),   with  integral D(h) (N.h) dw_h = 1.
 //  Either form may sit on a Lambertian base kd / pi.
 //
-// Convention (vec.h): local frame, normal +z; f excludes cos(theta_i); f = 0 when either
-// direction is below the surface. Equations, parameter mapping and limits: MODELS.md.
+// Conventions: brdf.h. Equations, parameter mapping and limits: MODELS.md 2.5 and 3.
 #pragma once
 
 #include <functional>
@@ -226,7 +225,7 @@ private:
 
 // Smith: exact height-correlated Smith for every D. (Beckmann's Lambda at the equivalent m
 // for every D, the classic shortcut, is not offered: it breaks energy conservation near
-// grazing, by up to 75 % for TR; MODELS.md 3.4.)
+// grazing, MODELS.md 3.4.)
 enum class GKind { VCavity, Smith };
 enum class FKind { None, Dielectric, Conductor, Schlick };
 enum class MicrofacetForm { Survey, Normalized };
