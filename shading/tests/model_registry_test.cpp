@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <ostream>
 #include <set>
 #include <sstream>
 #include <string>
@@ -35,6 +36,9 @@ struct Case {
     ModelExample example;
     int index;  // over all cases: seeds and viewing directions
 };
+
+// gtest names a case by its spec.
+void PrintTo(const Case& c, std::ostream* os) { *os << c.example.spec; }
 
 std::vector<Case> all_cases() {
     std::vector<Case> out;
