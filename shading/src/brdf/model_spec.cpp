@@ -10,7 +10,8 @@ namespace shading {
 
 // ---------------------------------------------------------------- the registry
 // One line per model, in help order. MODEL(x) names `ModelEntry x_model()`, defined in the
-// model's own file under src/brdf/ (its class, keys, parser, spec writer, examples and costs).
+// model's file under src/brdf/ with its class, keys, parser, spec writer, examples and costs
+// (phong_pov and blinn_pov share pov_highlights.cpp). MODELS.md 8: adding a model.
 #define SHADING_BRDF_MODELS(MODEL) \
     MODEL(lambert)                 \
     MODEL(phong_pov)               \

@@ -30,7 +30,7 @@ inline double pov_contribution_to_f(double c, double cos_i) {
     return c / (kPi * std::max(cos_i, kCosFloor));
 }
 
-// Two models of one shape (a colour, an exponent, POV's diffuse), kept as two classes so each f stays branch-free.
+// PhongPov and BlinnPov share one shape but stay two classes, so that each f is branch-free.
 // `phong P phong_size n` + `diffuse d`: f = d/pi + P (R.L)^n / (pi cos_i).
 struct PhongPov final : Brdf {
     Rgb phong{1.0};
