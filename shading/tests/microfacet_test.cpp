@@ -215,18 +215,9 @@ TEST(MicrofacetSampling, ChiSquareSampleMatchesPdf) {
     const int kTests = sizeof(cases) / sizeof(cases[0]);
     const double alpha = 0.01, sidak = 1.0 - std::pow(1.0 - alpha, 1.0 / kTests);
     uint64_t seed = 12345;
-    for (const Case& c : cases) {
-        BrdfPtr b = make_brdf(c.spec);
-        Vec3 wo = spherical_direction(deg(c.theta_o), deg(c.phi_o));
-        auto sample = [b, wo](double u1, double u2) { return b->sample(wo, u1, u2); };
-        auto pdf = [b, wo](const Vec3& wi) { return b->pdf(wo, wi); };
-        Chi2 r = chi2_test(sample, pdf, 100000, seed++);
-        EXPECT_GT(r.p, sidak) << c.spec << ": chi2=" << r.chi2 << " dof=" << r.dof;
-        EXPECT_GT(r.dof, 20) << c.spec;
-        // pdf integrates to the fraction of valid samples (the rest mirror below the horizon).
-        EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 0.01) << c.spec;
-        EXPECT_LE(r.pdf_mass, 1.0 + 1e-4) << c.spec;
-    }
+    for (const Case& c : cases)
+        expect_sampler_matches_pdf(*make_brdf(c.spec), spherical_direction(deg(c.theta_o), deg(c.phi_o)), false, sidak,
+                                   seed++, 8, 1e-4, c.spec);
 }
 
 // The default sampler every other model inherits (brdf.cpp), and the specular-lobe-only
@@ -250,18 +241,10 @@ TEST(MicrofacetSampling, ChiSquareDefaultAndGlossySamplers) {
     const int kTests = sizeof(cases) / sizeof(cases[0]);
     const double alpha = 0.01, sidak = 1.0 - std::pow(1.0 - alpha, 1.0 / kTests);
     uint64_t seed = 777;
-    for (const Case& c : cases) {
-        BrdfPtr b = make_brdf(c.spec);
-        Vec3 wo = spherical_direction(deg(c.theta_o), deg(c.phi_o));
-        auto sample = [&](double u1, double u2) { return c.glossy ? b->sample_glossy(wo, u1, u2) : b->sample(wo, u1, u2); };
-        auto pdf = [&](const Vec3& wi) { return c.glossy ? b->pdf_glossy(wo, wi) : b->pdf(wo, wi); };
-        // The default sampler's 1.5 deg lobe needs a finer quadrature of the cells.
-        Chi2 r = chi2_test(sample, pdf, 100000, seed++, c.glossy ? 8 : 32);
-        EXPECT_GT(r.p, sidak) << c.spec << ": chi2=" << r.chi2 << " dof=" << r.dof;
-        EXPECT_GT(r.dof, 20) << c.spec;
-        EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 0.01) << c.spec;
-        EXPECT_LE(r.pdf_mass, 1.0 + 1e-3) << c.spec;
-    }
+    // The default sampler's 1.5 deg lobe needs a finer quadrature of the cells.
+    for (const Case& c : cases)
+        expect_sampler_matches_pdf(*make_brdf(c.spec), spherical_direction(deg(c.theta_o), deg(c.phi_o)), c.glossy,
+                                   sidak, seed++, c.glossy ? 8 : 32, 1e-3, c.spec);
     // The glossy samplers really drop the cosine branch: a direction far from the lobe has
     // zero glossy density but positive full density.
     BrdfPtr m = make_brdf("microfacet d=beckmann m=0.05 kd=0.6 rho_s=0.3");

@@ -1,5 +1,6 @@
-// Sampling checks shared by the tests of samplers (microfacet_test.cpp, table_sampler_test.cpp):
-// a seeded portable RNG and a chi-square test of sample() against pdf().
+// Sampling checks shared by the tests of samplers (microfacet_test.cpp, table_sampler_test.cpp,
+// model_registry_test.cpp): a seeded portable RNG, a chi-square test of sample() against pdf(),
+// and that test's expectations for a BRDF's sampler.
 #pragma once
 
 #include <algorithm>
@@ -7,8 +8,12 @@
 #include <cstdint>
 #include <functional>
 #include <random>
+#include <string>
 #include <vector>
 
+#include <gtest/gtest.h>
+
+#include "shading/brdf/brdf.h"
 #include "shading/core/vec.h"
 
 namespace shading_test {
@@ -155,6 +160,21 @@ inline Chi2 chi2_test(const std::function<Vec3(double, double)>& sample, const s
     r.dof = cells - 1;
     r.p = gamma_q(r.dof / 2.0, r.chi2 / 2.0);
     return r;
+}
+
+// A BRDF's sampler at wo against its pdf: sample()/pdf(), or sample_glossy()/pdf_glossy().
+// Expects p above `p_min` (a Sidak-corrected level), more than 20 degrees of freedom, the pdf
+// integrating to the fraction of valid samples (the rest fall below the horizon) and to at
+// most 1 + mass_slack. kSub as chi2_test's (the default sampler's 1.5 deg lobe wants 32).
+inline void expect_sampler_matches_pdf(const Brdf& b, const Vec3& wo, bool glossy, double p_min, uint64_t seed,
+                                       int kSub, double mass_slack, const std::string& what) {
+    auto sample = [&](double u1, double u2) { return glossy ? b.sample_glossy(wo, u1, u2) : b.sample(wo, u1, u2); };
+    auto pdf = [&](const Vec3& wi) { return glossy ? b.pdf_glossy(wo, wi) : b.pdf(wo, wi); };
+    Chi2 r = chi2_test(sample, pdf, 100000, seed, kSub);
+    EXPECT_GT(r.p, p_min) << what << ": chi2=" << r.chi2 << " dof=" << r.dof;
+    EXPECT_GT(r.dof, 20) << what;
+    EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 0.01) << what;
+    EXPECT_LE(r.pdf_mass, 1.0 + mass_slack) << what;
 }
 
 }  // namespace shading_test

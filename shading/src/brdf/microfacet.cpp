@@ -1,5 +1,11 @@
-// Microfacet distributions, sampling and the microfacet BRDF (microfacet.h). Equations: MODELS.md.
+// microfacet: the D, G and F terms, their sampling, and the microfacet BRDF in the survey
+// (rho_s DGF / (pi N.V N.L)) or the normalised Cook-Torrance form (rho_s DGF / (4 N.V N.L)),
+// over an optional Lambertian base (MODELS.md 2.5 and 3). Reciprocal in both forms; the
+// normalised form's albedo stays <= 1 (the survey form's D is unnormalised); samples D.
 #include "shading/brdf/microfacet.h"
+
+#include "shading/brdf/model_spec.h"
+#include "shading/brdf/spec_args.h"
 #include "shading/core/format.h"
 
 #include <algorithm>
@@ -164,13 +170,16 @@ NormalDistribution::NormalDistribution(DKind kind, double param) : kind_(kind), 
 }
 
 NormalDistribution NormalDistribution::from_m(DKind kind, double m) {
+    double native = m;
     switch (kind) {
-        case DKind::Blinn: return {kind, blinn_n_from_m(m)};
-        case DKind::Gaussian: return {kind, gaussian_n2_from_m(m)};
-        case DKind::TrowbridgeReitz: return {kind, tr_alpha_from_m(m)};
+        case DKind::Blinn: native = blinn_n_from_m(m); break;
+        case DKind::Gaussian: native = gaussian_n2_from_m(m); break;
+        case DKind::TrowbridgeReitz: native = tr_alpha_from_m(m); break;
         case DKind::Beckmann: break;
     }
-    return {kind, m};
+    NormalDistribution d(kind, native);
+    d.given_m_ = m;
+    return d;
 }
 
 double NormalDistribution::m_equivalent() const {
@@ -191,6 +200,16 @@ const char* NormalDistribution::name() const {
         case DKind::Beckmann: break;
     }
     return "beckmann";
+}
+
+const char* NormalDistribution::native_key() const {
+    switch (kind_) {
+        case DKind::Blinn: return "n1";
+        case DKind::Gaussian: return "n2";
+        case DKind::TrowbridgeReitz: return "n3";
+        case DKind::Beckmann: break;
+    }
+    return "m";
 }
 
 double NormalDistribution::survey(double cos_h) const {
@@ -255,6 +274,16 @@ std::string FresnelTerm::describe() const {
     return "f=schlick f0=" + fmt(f0);
 }
 
+void FresnelTerm::write_spec(SpecWriter& w) const {
+    switch (kind) {
+        case FKind::None: w.word("f", "none"); return;
+        case FKind::Dielectric: w.word("f", "dielectric").number("eta", eta); return;
+        case FKind::Conductor: w.word("f", "conductor").rgb("n", n).rgb("k", k); return;
+        case FKind::Schlick: break;
+    }
+    w.word("f", "schlick").rgb("f0", f0);
+}
+
 // ---------------------------------------------------------------- Microfacet
 
 double Microfacet::geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const {
@@ -315,6 +344,122 @@ std::string Microfacet::describe() const {
     s += g == GKind::VCavity ? " g=vcavity " : " g=smith ";
     s += fresnel.describe() + " rho_s=" + fmt(rho_s) + " kd=" + fmt(kd) + ")";
     return s;
+}
+
+
+// ---------------------------------------------------------------- spec and registration
+
+namespace {
+const SpecKey kForm{"form", "survey|normalized", "survey rho_s DGF/(pi N.V N.L) or normalised rho_s DGF/(4 N.V N.L)"};
+const SpecKey kD{"d", "blinn|gaussian|tr|beckmann", "normal distribution"};
+const SpecKey kM{"m", "<x>", "Beckmann-equivalent roughness, mapped per d", 1e-4, 1};
+const SpecKey kN1{"n1", "<x>", "d=blinn native exponent (instead of m)", 0, 1e9};
+const SpecKey kN2{"n2", "<x>", "d=gaussian native width (instead of m)", 0.1, 1e5};
+const SpecKey kN3{"n3", "<x>", "d=tr native alpha (instead of m)", 1e-4, 1};
+const SpecKey kG{"g", "vcavity|smith", "masking-shadowing (smith: exact height-correlated Smith for every d)"};
+const SpecKey kF{"f", "none|dielectric|conductor|schlick", "Fresnel term"};
+const SpecKey kEta{"eta", "<x>", "f=dielectric: n_inside/n_outside", 0.01, 10};
+const SpecKey kN{"n", "<rgb>", "f=conductor (required): real index", 0.01, 20};
+const SpecKey kK{"k", "<rgb>", "f=conductor (required): extinction", 0, 20};
+const SpecKey kF0{"f0", "<rgb>", "f=schlick: normal-incidence reflectance", 0, 1};
+const SpecKey kRhoS{"rho_s", "<rgb>", "specular scale", 0, 1, " (survey: [0,100])"};
+const SpecKey kKd{"kd", "<rgb>", "Lambertian base", 0, 1, "; normalized: kd+rho_s <= 1"};
+
+const char* g_name(GKind g) { return g == GKind::VCavity ? "vcavity" : "smith"; }
+
+std::string microfacet_keys() {
+    const Microfacet d;
+    return help_line(kForm, d.form == MicrofacetForm::Survey ? "survey" : "normalized") + help_line(kD, d.d.name()) +
+           help_line(kM, fmt(d.d.m_equivalent())) + help_line(kN1, "") + help_line(kN2, "") + help_line(kN3, "") +
+           help_line(kG, g_name(d.g)) + help_line(kF, "none") + help_line(kEta, fmt(d.fresnel.eta)) +
+           help_line(kN, "") + help_line(kK, "") + help_line(kF0, fmt(d.fresnel.f0)) + help_line(kRhoS, fmt(d.rho_s)) +
+           help_line(kKd, fmt(d.kd));
+}
+
+BrdfPtr make_microfacet(SpecArgs& a) {
+    auto b = std::make_shared<Microfacet>();
+    const std::string default_d = b->d.name();
+    const double default_m = b->d.m_equivalent();
+    bool survey = a.word(kForm.name, b->form == MicrofacetForm::Survey ? "survey" : "normalized",
+                         {"survey", "normalized"}) == "survey";
+    b->form = survey ? MicrofacetForm::Survey : MicrofacetForm::Normalized;
+
+    std::string d = a.word(kD.name, default_d, {"blinn", "gaussian", "tr", "beckmann"});
+    DKind kind = d == "blinn" ? DKind::Blinn
+                 : d == "gaussian" ? DKind::Gaussian
+                 : d == "tr" ? DKind::TrowbridgeReitz
+                             : DKind::Beckmann;
+    // Roughness: m (Beckmann-equivalent, mapped per D) or the D's native parameter.
+    const SpecKey* native = kind == DKind::Blinn ? &kN1 : kind == DKind::Gaussian ? &kN2 : kind == DKind::TrowbridgeReitz ? &kN3 : nullptr;
+    for (const SpecKey* k : {&kN1, &kN2, &kN3})
+        if (k != native && a.has(k->name)) spec_error(a.where(k->name) + "not a parameter of d=" + d);
+    if (native && a.has(native->name)) {
+        if (a.has(kM.name)) spec_error(a.where(kM.name) + "give either m or " + native->name + ", not both");
+        b->d = NormalDistribution(kind, a.number(*native, 0));
+    } else {
+        b->d = NormalDistribution::from_m(kind, a.number(kM, default_m));
+    }
+
+    std::string g = a.word(kG.name, g_name(b->g), {"vcavity", "smith"});
+    b->g = g == "vcavity" ? GKind::VCavity : GKind::Smith;
+
+    std::string f = a.word(kF.name, "none", {"none", "dielectric", "conductor", "schlick"});
+    if (f != "dielectric") a.forbid({kEta.name}, "only used with f=dielectric");
+    if (f != "conductor") a.forbid({kN.name, kK.name}, "only used with f=conductor");
+    if (f != "schlick") a.forbid({kF0.name}, "only used with f=schlick");
+    if (f == "dielectric") {
+        b->fresnel.kind = FKind::Dielectric;
+        b->fresnel.eta = a.number(kEta, b->fresnel.eta);
+    } else if (f == "conductor") {
+        b->fresnel.kind = FKind::Conductor;
+        b->fresnel.n = a.rgb(kN, b->fresnel.n, true);
+        b->fresnel.k = a.rgb(kK, b->fresnel.k, true);
+    } else if (f == "schlick") {
+        b->fresnel.kind = FKind::Schlick;
+        b->fresnel.f0 = a.rgb(kF0, b->fresnel.f0);
+    }
+
+    b->kd = a.rgb(kKd, b->kd);
+    b->rho_s = a.rgb(kRhoS.name, b->rho_s, kRhoS.lo, survey ? 100 : kRhoS.hi);
+    if (!survey) a.check_sum("kd", b->kd, "rho_s", b->rho_s);
+    return b;
+}
+}  // namespace
+
+// The form only when it is survey; m when the D was built from m, else its native parameter.
+void Microfacet::write_spec(SpecWriter& w) const {
+    w.model("microfacet");
+    if (form == MicrofacetForm::Survey) w.word(kForm.name, "survey");
+    w.word(kD.name, d.name()).word(kG.name, g_name(g));
+    if (d.given_m() > 0)
+        w.number(kM.name, d.given_m());
+    else
+        w.number(d.native_key(), d.param());
+    fresnel.write_spec(w);
+    w.rgb(kKd.name, kd).rgb(kRhoS.name, rho_s);
+}
+
+ModelEntry microfacet_model() {
+    ModelEntry m;
+    m.name = "microfacet";
+    m.summary = "microfacet D G F, survey form rho_s DGF/(pi N.V N.L) or normalised rho_s DGF/(4 N.V N.L), + kd/pi";
+    m.keys = microfacet_keys;
+    m.make = make_microfacet;
+    // The survey form's D is unnormalised (peak 1, or 1/m^2): its albedo is not bounded.
+    m.examples = {{"microfacet d=beckmann m=0.3 f=dielectric eta=1.5 kd=0.3 rho_s=0.6"},
+                  {"microfacet d=blinn m=0.2 g=vcavity f=schlick f0=0.1 kd=0.2 rho_s=0.7"},
+                  {"microfacet d=gaussian n2=6 f=conductor n=0.2,0.9,1.1 k=3.6,2.4,1.9"},
+                  {"microfacet d=tr n3=0.25 kd=0.4 rho_s=0.6"},
+                  {"microfacet d=blinn n1=50"},
+                  {"microfacet d=gaussian m=0.35 g=vcavity"},
+                  {"microfacet form=survey d=tr m=0.2 g=vcavity rho_s=2 kd=0.1", false}};
+    // Closed-form D are cheap; the tabulated Smith Lambda (Blinn, Gaussian) and the
+    // Gaussian's acos cost more.
+    m.costs = {{"microfacet d=blinn", 1.15},
+               {"microfacet d=tr", 1.15},
+               {"microfacet d=beckmann", 1.20},
+               {"microfacet d=gaussian", 1.30}};
+    return m;
 }
 
 }  // namespace shading

@@ -362,36 +362,6 @@ private:
     Interp interp_;
 };
 
-// Directional albedo at theta_o by multiple importance sampling over stratified grids of five
-// components: the four of the default sampler (brdf.h: cosine-weighted, and cos^e lobes about
-// the mirror direction with e = 30, 300, 3000) and the model's own sampler (Brdf::sample: the
-// microfacet D or Ward lobe, long tails included), combined with the balance heuristic (equal
-// counts: each sample weighs f cos / the mean of the five pdfs). Measured against a 1200 x 2400
-// midpoint rule (harness.reference.models): Lambert exact, glossy parts within 0.3 % below 80 deg.
-Rgb quadrature_albedo(const Brdf& b, double theta_o) {
-    constexpr int n = 48;  // strata per axis and component
-    const Vec3 wo(std::sin(theta_o), 0.0, std::cos(theta_o));
-    const Vec3 mirror(-wo.x, 0.0, wo.z);
-    const Vec3 axes[4] = {Vec3(0, 0, 1), mirror, mirror, mirror};
-    const double exps[4] = {1.0, kGenericLobeExponents[0], kGenericLobeExponents[1], kGenericLobeExponents[2]};
-    // The default mixture's pdf is the mean of its four components (Brdf::pdf, not overridden).
-    auto mixture = [&](const Vec3& wi) { return 0.8 * b.Brdf::pdf(wo, wi) + 0.2 * b.pdf(wo, wi); };
-    // The Lambertian base integrates to its albedo exactly: only the rest is integrated, so a
-    // small glossy part on a large base keeps its relative accuracy.
-    const Rgb base = b.lambert_base(), base_f = base * kInvPi;
-    Rgb sum;
-    for (int comp = 0; comp < 5; ++comp)
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) {
-                const double u1 = (i + 0.5) / n, u2 = (j + 0.5) / n;
-                const Vec3 wi = comp < 4 ? sample_cosine_power(axes[comp], exps[comp], u1, u2) : b.sample(wo, u1, u2);
-                if (!(wi.z > 0)) continue;  // below the surface (or no sample): contributes 0
-                const double p = mixture(wi);
-                if (p > 0) sum += (b.f(wo, wi) - base_f) * (wi.z / (5.0 * p));
-            }
-    return sum * (1.0 / (n * n)) + base;
-}
-
 }  // namespace
 
 BrdfPtr table_brdf(std::shared_ptr<const BrdfTable> table, Interp interp) {

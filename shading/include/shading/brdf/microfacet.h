@@ -8,8 +8,7 @@
 //        f = rho_s * D * G * F / (4 (N.L)(N.V)),   with  integral D(h) (N.h) dw_h = 1.
 //  Either form may sit on a Lambertian base kd / pi.
 //
-// Convention (vec.h): local frame, normal +z; f excludes cos(theta_i); f = 0 when either
-// direction is below the surface. Equations, parameter mapping and limits: MODELS.md.
+// Conventions: brdf.h. Equations, parameter mapping and limits: MODELS.md 2.5 and 3.
 #pragma once
 
 #include <functional>
@@ -22,18 +21,6 @@
 #include "shading/brdf/fresnel.h"
 
 namespace shading {
-
-// Cosines below this are clamped where they divide: a direction within 1e-12 rad of the
-// horizon. The models' 1/cos factors would otherwise overflow to Inf for denormal cosines;
-// pov_weight() multiplies by cos_i, so nothing a renderer shows changes.
-constexpr double kCosFloor = 1e-12;
-
-// ---------------------------------------------------------------- geometry helpers
-
-// Half vector of a reflection pair; wo + wi != 0 whenever both are above the surface.
-inline Vec3 half_vector(const Vec3& wo, const Vec3& wi) { return normalize(wo + wi); }
-// Mirror w about the unit vector h: 2 (w.h) h - w.
-inline Vec3 reflect_about(const Vec3& w, const Vec3& h) { return h * (2.0 * dot(w, h)) - w; }
 
 // ---------------------------------------------------------------- survey D (unnormalised)
 // cos_h = N.H = cos(alpha). Each returns 0 for cos_h <= 0 (microfacet facing away).
@@ -218,11 +205,17 @@ public:
     double smith_lambda_beckmann_equivalent(const Vec3& w) const;
     // Unit half vector with density normalized(h.z) * h.z.
     Vec3 sample_h(double u1, double u2) const;
+    // The m that from_m() was given, 0 if built from the native parameter: a spec writes
+    // that m back (m_equivalent() need not return it to the bit).
+    double given_m() const { return given_m_; }
+    // "m" for Beckmann, else the native parameter's key: "n1", "n2", "n3".
+    const char* native_key() const;
 
 private:
     struct GaussianTable;
     DKind kind_;
     double param_;
+    double given_m_ = 0;
     double norm_ = 1.0;  // Gaussian normalisation constant (gaussian_norm)
     std::shared_ptr<const GaussianTable> table_;
     std::shared_ptr<const SmithLambdaTable> smith_;  // Blinn and Gaussian only
@@ -232,7 +225,7 @@ private:
 
 // Smith: exact height-correlated Smith for every D. (Beckmann's Lambda at the equivalent m
 // for every D, the classic shortcut, is not offered: it breaks energy conservation near
-// grazing, by up to 75 % for TR; MODELS.md 3.4.)
+// grazing, MODELS.md 3.4.)
 enum class GKind { VCavity, Smith };
 enum class FKind { None, Dielectric, Conductor, Schlick };
 enum class MicrofacetForm { Survey, Normalized };
@@ -244,6 +237,7 @@ struct FresnelTerm {
     Rgb f0{0.04};         // Schlick: reflectance at normal incidence
     Rgb eval(double cos_d) const;
     std::string describe() const;
+    void write_spec(SpecWriter& w) const;  // "f=... [its keys]"
 };
 
 struct Microfacet final : Brdf {
@@ -256,6 +250,7 @@ struct Microfacet final : Brdf {
 
     Rgb f(const Vec3& wo, const Vec3& wi) const override;
     std::string describe() const override;
+    void write_spec(SpecWriter& w) const override;
     double geometry(const Vec3& wo, const Vec3& wi, const Vec3& h) const;
     // Smith: Lambda(wo) once per viewer (the lights of a shading point share it).
     void prepare_view(const Vec3& wo, BrdfViewCache* cache) const override;

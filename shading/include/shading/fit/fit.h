@@ -125,7 +125,7 @@ std::string pov_finish_snippet(const std::string& spec);
 // Relative render cost of a model family against POV's stock `phong` (trace-time ratio).
 // Keys are family prefixes: "lambert", "oren_nayar", "ward", "lafortune", "microfacet d=X",
 // "table" (brdf_table lookups). harness/tools/cost.py measures them; without a file the built-in
-// rough order below is used.
+// rough order is used: each model's own entries (ModelEntry::costs, model_spec.h) and "table".
 struct CostTable {
     std::vector<std::pair<std::string, double>> entries;
     std::string source = "built-in rough order";
