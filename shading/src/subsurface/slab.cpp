@@ -13,8 +13,6 @@ namespace shading {
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 // One point source at signed height z above the evaluation plane (the plane's normal pointing
 // towards the source is +): z (1 + s d) e^{-s d} / d^3, d = sqrt(r^2 + z^2) (the dipole's term).
 inline double source_term(double r, double z, double s) {

@@ -14,12 +14,12 @@
 
 #include "shading/brdf/fresnel.h"
 #include "shading/core/bytes.h"
+#include "shading/core/quadrature.h"
 
 namespace shading {
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kTiny = 1e-37;  // floor of profile values before taking logs (float32 range)
 
 std::string num(double v) {
@@ -67,12 +67,6 @@ double exit_integral(const std::vector<double>& samples, double eta) {
     return sum / (eta * eta);
 }
 
-// Gauss-Legendre nodes and weights on [0, 1], 8 points.
-constexpr double kGlX[8] = {0.019855071751231856, 0.10166676129318664, 0.2372337950418355, 0.4082826787521751,
-                            0.5917173212478249, 0.7627662049581645, 0.8983332387068134, 0.9801449282487681};
-constexpr double kGlW[8] = {0.05061426814518813, 0.11119051722668724, 0.15685332293894363, 0.18134189168918100,
-                            0.18134189168918100, 0.15685332293894363, 0.11119051722668724, 0.05061426814518813};
-
 // ---------------------------------------------------------------- the radial interpolant
 // Node 0 at rho = 0, nodes b >= 1 uniformly spaced in x = ln rho. Segment 0 [0, rho_1] is linear
 // in rho between the two values; segments b >= 1 are cubic Hermite in x on y = ln Rd with
@@ -112,15 +106,15 @@ struct RadialCurve {
         double sum = 0;
         if (b == 0) {
             for (int i = 0; i < 8; ++i) {
-                const double r = r1 + (r2 - r1) * kGlX[i];
-                sum += kGlW[i] * 2 * kPi * r * eval_in(0, r);
+                const double r = r1 + (r2 - r1) * kGaussLegendre8UnitX[i];
+                sum += kGaussLegendre8UnitW[i] * 2 * kPi * r * eval_in(0, r);
             }
             return sum * (r2 - r1);
         }
         const double x1 = std::log(r1), x2 = std::log(r2);
         for (int i = 0; i < 8; ++i) {
-            const double r = std::exp(x1 + (x2 - x1) * kGlX[i]);
-            sum += kGlW[i] * 2 * kPi * r * r * eval_in(b, r);
+            const double r = std::exp(x1 + (x2 - x1) * kGaussLegendre8UnitX[i]);
+            sum += kGaussLegendre8UnitW[i] * 2 * kPi * r * r * eval_in(b, r);
         }
         return sum * (x2 - x1);
     }

@@ -2,6 +2,8 @@
 // sampling itself (lines, refinement) is subsurface_sampling.cpp.
 #include "shading/subsurface/subsurface.h"
 
+#include "shading/core/quadrature.h"
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -16,8 +18,6 @@
 namespace shading {
 
 namespace {
-
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // ---------------------------------------------------------------- statistics
 // Build counters change once per object; lookup counters once per shaded point, so each
@@ -74,10 +74,6 @@ constexpr int kMaxDepth = 48;
 constexpr int kSubBits = 6;
 constexpr int kPerOctave = 1 << kSubBits;
 constexpr int kMaxOctaves = 1000;  // s < 2^1000: far inside the double range
-
-// 4-point Gauss-Legendre on [-1, 1].
-constexpr double kGaussX[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563, 0.8611363115940526};
-constexpr double kGaussW[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538};
 
 std::string fmt3(double v) {
     char buf[32];
@@ -340,8 +336,8 @@ Rgb RdProfile::interval_integral(double a, double b) const {
     const double c = 0.5 * (a + b), w = 0.5 * (b - a);
     Rgb sum;
     for (int g = 0; g < 4; ++g) {
-        const double r = c + w * kGaussX[g];
-        sum += rd_(r) * (kGaussW[g] * w * 2 * kPi * r);
+        const double r = c + w * kGaussLegendre4X[g];
+        sum += rd_(r) * (kGaussLegendre4W[g] * w * 2 * kPi * r);
     }
     return sum;
 }

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "shading/core/format.h"
+#include "shading/core/random.h"
 #include "shading/tables/table_sampler.h"
 
 namespace shading {
@@ -128,22 +129,13 @@ ReciprocityStats reciprocity_of(const TableGeometry& g, const float* v) {
     return s;
 }
 
-// splitmix64: a fully specified generator, so a seed gives the same table everywhere
-// (std::normal_distribution is implementation-defined).
-struct SplitMix64 {
-    uint64_t x;
-    uint64_t next() {
-        uint64_t z = (x += 0x9e3779b97f4a7c15ull);
-        z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-        z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-        return z ^ (z >> 31);
-    }
-    double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
-    double normal() {  // Box-Muller; 1 - u keeps log() away from 0
-        double u1 = 1.0 - uniform(), u2 = uniform();
-        return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
-    }
-};
+// A standard normal deviate by Box-Muller from a fully specified generator (core/random.h), so a
+// seed gives the same table everywhere (std::normal_distribution is implementation-defined).
+// 1 - u keeps log() away from 0.
+double normal_deviate(SplitMix64& rng) {
+    double u1 = 1.0 - rng.uniform(), u2 = rng.uniform();
+    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
+}
 
 }  // namespace
 
@@ -936,7 +928,7 @@ uint64_t simulate_measurement(TableGrid& grid, const MeasurementSim& sim) {
     SplitMix64 rng{sim.seed};
     // Multiplicative gaussian noise; a factor below 0 (a > 1/noise sigma event) is clamped,
     // since a gonioreflectometer reports no negative reflectance for a lit sample.
-    for (float& x : grid.values) x = float(double(x) * std::max(0.0, 1.0 + sim.noise * rng.normal()));
+    for (float& x : grid.values) x = float(double(x) * std::max(0.0, 1.0 + sim.noise * normal_deviate(rng)));
     const int C = grid.geom.channels;
     uint64_t missing = 0;
     for (uint64_t cell = 0, cells = grid.geom.cells(); cell < cells; ++cell)

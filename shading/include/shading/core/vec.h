@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -21,6 +22,7 @@ namespace shading {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInvPi = 1.0 / kPi;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 // Radians per degree and degrees per radian (tables and tools speak degrees).
 constexpr double kDegree = kPi / 180.0;
 constexpr double kRadToDeg = 180.0 / kPi;
