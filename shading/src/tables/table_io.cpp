@@ -51,11 +51,7 @@ using bytes::wr_f64;
 using bytes::wr_u32;
 using bytes::wr_u64;
 
-std::string hex64(uint64_t v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
-    return buf;
-}
+using detail::hex64;
 std::string quoted_bytes(const uint8_t* p, size_t n) {
     std::string s = "\"";
     for (size_t k = 0; k < n; ++k) {
