@@ -17,6 +17,12 @@ inline std::string fmt(double v, int digits = 6) {
     std::snprintf(buf, sizeof buf, "%.*g", digits, v);
     return buf;
 }
+// A stored float as messages show it: "nan", "inf", "-inf" or 9 digits (the float exactly).
+inline std::string fmt_float(float v) {
+    if (std::isnan(v)) return "nan";
+    if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+    return fmt(v, 9);
+}
 // A checksum as the file formats' messages print it: "0x" and 16 hex digits.
 inline std::string hex64(uint64_t v) {
     char buf[32];

@@ -40,6 +40,7 @@
 #pragma once
 
 #include <atomic>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -110,6 +111,9 @@ public:
 };
 [[noreturn]] void throw_table_error(const std::string& name, uint64_t offset, const std::string& expected,
                                     const std::string& found);
+
+// A value a table may hold: finite and >= 0 (NaN and negative cells of a grid are "no data").
+inline bool valid_table_value(float v) { return std::isfinite(v) && v >= 0.0f; }
 
 enum class TableLayout : uint32_t { Isotropic = 1, Anisotropic = 2, HalfDiff = 3 };
 // Linear = trilinear (isotropic) / quadrilinear (anisotropic) in the angles, phi periodic
