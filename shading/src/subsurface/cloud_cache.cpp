@@ -2,7 +2,7 @@
 //
 // Lookups read an immutable sorted index (key -> entry) through one atomic pointer and the
 // entry's `ready` pointer: no lock once a cloud exists. A new key copies the index under the
-// mutex and publishes the copy; old copies stay alive until the Subsurface goes (a reader may
+// mutex and publishes the copy; old copies stay alive until the cache goes (a reader may
 // still be looking at one). Building: the first thread to ask is the leader and runs the
 // sampling; it hands each parallel stage (lines, irradiance) to every thread that asks for the
 // same cloud meanwhile: they take chunks of the stage with their own sampler until it is done

@@ -6,8 +6,9 @@
 //  * wo points towards the viewer, wi towards the light; both leave the surface.
 //  * Brdf::f(wo, wi) returns the BRDF in 1/sr and EXCLUDES cos(theta_i).
 //  * POV-Ray has no 1/pi: its light colour acts as irradiance at normal incidence
-//    and its pixel values are pi x radiance. The one place that applies that
-//    factor is pov_weight() in brdf.h.
+//    and its pixel values are pi x radiance. A BRDF reaches POV through pov_weight()
+//    in brdf.h (pi f cos_i); the subsurface finish returns pixel values itself
+//    (RadialProfile::exit_factor is pi L / M).
 #pragma once
 
 #include <algorithm>

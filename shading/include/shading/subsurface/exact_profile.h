@@ -22,10 +22,11 @@ public:
     // clamped to their range at the same reduced albedo (similarity; listed in notes()). Throws
     // std::invalid_argument for an invalid medium or an eta outside the tables.
     // `slab_tables` (optional; make brdf-data ships subsurface_slabs.ssp): exact reflection and
-    // transmission faces of slabs for thin geometry (slab.h make_exact_slab_profiles), used
+    // transmission faces of slabs for thin geometry (make_exact_slab_profiles below), used
     // where they cover every scattering channel's (g, eta); slab_gap() says why they don't.
     ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
                  std::shared_ptr<const ProfileTables> slab_tables = nullptr);
+    // (The interface's overrides, in DipoleRadialProfile's order.)
     Rgb rd(double r) const override;
     Rgb rd_disc(double R) const override;
     Rgb total() const override;
@@ -69,10 +70,9 @@ private:
 // once, as for the half-space). T has the tables' total of all orders (multi + single: light
 // scattered once on its way through leaves the opposite face too, and no BRDF renders it) in
 // the multipole's radial shape: the tables' own transmission profile is photon noise near
-// rho = 0 beyond ~4 mfp (few paths land in the small central bins: zeros and humps, e.g.
-// alpha' 0.998, d 8 mfp: Td(0) = 1e-14, Td(2 mfp') > Td(1 mfp')), while its total is within
-// 3 % of the harness Monte Carlo. Channels the tables don't cover (no tables, or d outside
-// their slab nodes): the multipole with R scaled by `scale`, as make_slab_profiles.
+// rho = 0 beyond a few mfp, while their total holds (DIPOLE.md 6a). Channels the tables don't
+// cover (no tables, or d outside their slab nodes): the multipole with R scaled by `scale`, as
+// make_slab_profiles.
 // `tabulated` (optional): how many channels came from the tables.
 SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& scale,
                                       int* tabulated = nullptr);

@@ -14,14 +14,14 @@
 
 namespace shading {
 
-class SurfaceSampler;
+class SurfaceSampler;  // subsurface_sampling.h
 // Runs task(i, sampler) for i in [0, n), possibly from several threads, each with its own
 // sampler; returns when all are done (rethrowing the first exception).
 using ParallelFor =
     std::function<void(std::size_t n, const std::function<void(std::size_t, SurfaceSampler&)>& task)>;
 
 // One surface sample: position and outward unit normal (scene units), the area it stands for,
-// the irradiance transmitted into the medium there (POV units, see above), and the spacing
+// the irradiance transmitted into the medium there (POV units: subsurface.h), and the spacing
 // of the sample lines that found it (its refinement level).
 struct SurfacePoint {
     Vec3 p, n;

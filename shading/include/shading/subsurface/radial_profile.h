@@ -2,11 +2,10 @@
 // (subsurface.h) integrates, per colour channel in SCENE units, behind one interface:
 //  * DipoleRadialProfile: Jensen et al. 2001's dipole (dipole.h), whose Rd approximates single
 //    and multiple scattering together, with Jensen's exit and entry factors Ft(cos);
-//  * ExactProfile: the exact multiple-scattering profile of the library's own Monte Carlo
-//    transport (ss_profile.h), with the exit distribution and incidence factor of the same
-//    transport; single scattering is the exact BRDF (Dipole::single_scatter_brdf), added once
-//    by the finish.
-// See shading/DIPOLE.md ("Exact profiles").
+//  * ExactProfile (exact_profile.h): the exact multiple-scattering profile of the library's
+//    own Monte Carlo transport (ss_profile.h).
+// A profile also gives its thin slabs (slab_profiles) for thin geometry; the table the octree
+// reads is make_rd_profile(profile). See shading/DIPOLE.md 6 and 10.
 #pragma once
 
 #include <memory>

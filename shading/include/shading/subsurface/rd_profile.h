@@ -24,21 +24,21 @@ inline double far_window(double r, double r0, double h) {
 }
 
 // Rd(r) per channel (exitance at distance r per unit flux entering the medium, per scene
-// unit^2), tabulated once for the octree's inner loop with its first two derivatives:
-// cubic Hermite in r between nodes (f from f and f', f'' from f'' and f'''). Nodes lie at r = scale (s - 1) for
-// s = 2^e (1 + k/64): 64 per octave of 1 + r/scale, uniform within `scale` of the peak and
-// logarithmic beyond (the same relative step along an exponential or power-law tail), found
-// from the bits of s without a logarithm. 0 at and beyond r_max. Relative error below 1e-4
-// wherever Rd > 1e-9 Rd(0) (SubsurfaceRdProfile tests).
+// unit^2), tabulated once for the octree's inner loop with its first two derivatives: cubic
+// Hermite in r between nodes (f from f and f', f'' from f'' and f'''). Nodes lie at
+// r = scale (s - 1) for s = 2^e (1 + k/64): 64 per octave of 1 + r/scale, uniform within
+// `scale` of the peak and logarithmic beyond (the same relative step along an exponential or
+// power-law tail), found from the bits of s without a logarithm. 0 at and beyond r_max.
+// Relative error below 1e-4 wherever Rd > 1e-9 Rd(0) (SubsurfaceRdProfile tests).
 class RdProfile {
 public:
     using Fn = std::function<Rgb(double)>;
     // rd(r): the profile, finite and >= 0 for every r >= 0 (called only here, while building
     // and for the near field). disc(R) (may be empty): its integral over a disc of radius R,
     // dimensionless, disc(inf) the total diffuse reflectance; empty: integrated numerically
-    // from rd (4-point Gauss-Legendre on each node interval, summed once). scale > 0: the length of the profile's
-    // peak (the smallest mean free path 1/sigma_t'); r_max > 0: where rd may be taken as 0.
-    // Throws std::invalid_argument for a bad range.
+    // from rd (4-point Gauss-Legendre on each node interval, summed once). scale > 0: the
+    // length of the profile's peak (the smallest mean free path 1/sigma_t'); r_max > 0: where
+    // rd may be taken as 0. Throws std::invalid_argument for a bad range.
     RdProfile(Fn rd, Fn disc, double scale, double r_max);
     // A tabulated profile: radii 0 = r[0] < r[1] < ... and rd per channel at each (>= 0),
     // interpolated monotonically (Fritsch-Carlson cubic in log rd; linear where rd is 0),

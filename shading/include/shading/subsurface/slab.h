@@ -64,20 +64,21 @@ struct SlabProfiles {
     Rgb R_total, T_total;
     std::shared_ptr<const RdProfile> same, transmit;
     // Empty: the finish's half-space exit factor for both faces (the multipole). Set by
-    // make_exact_slab_profiles: pi L / M toward outside cosine cos_o of each face (the tables'
-    // R and T faces where they cover the channel, else the model's half-space factor).
+    // make_exact_slab_profiles (exact_profile.h): pi L / M toward outside cosine cos_o of each
+    // face (the tables' R and T faces where they cover the channel, else the model's
+    // half-space factor).
     std::function<void(double cos_o, Rgb* same, Rgb* opposite)> exit;
 };
 // `scale`: per channel, multiplies R (and its total): 1 for the dipole; for another half-space
-// model (the exact profile) its total over the dipole's (Subsurface), so that R meets that
-// model's half-space at the threshold. T is not scaled (it vanishes there anyway, and the
+// model (the exact profile) its total over the dipole's (RadialProfile::slab_profiles), so
+// that R meets that model's half-space at the threshold. T is not scaled (it vanishes there anyway, and the
 // multipole's T is within a few % of transport at high albedo where the dipole's total is not).
 SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& scale = Rgb(1.0));
 
 // The thickness above which a slab's totals differ from the semi-infinite medium's by less
 // than `tolerance` of its total reflectance in every channel, (|R_total(d) - R_inf| + T_total(d)) / R_inf
 // (both shrink with d: bisection in log d): the finish renders objects at least this thick as
-// semi-infinite, exactly as before thin geometry existed. Scene units.
+// semi-infinite, exactly as without thin geometry. Scene units.
 double slab_threshold(const Dipole& dipole, double tolerance = 0.005);
 
 }  // namespace shading

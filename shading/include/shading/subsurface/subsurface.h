@@ -9,12 +9,12 @@
 //     crossing the object, and the Fresnel-transmitted irradiance E_t at a point in POV's
 //     units: sum over lights of Ft(eta, cos_l) cos_l x light colour x visibility, the light
 //     loop of a surface whose BRDF is TransmittanceBrdf: Ft, or the profile's entry factor,
-//     over pi). Every render thread that asks for a
-//     cloud while it is being built takes part in building it (its own sampler), and the
-//     result does not depend on which thread did what. Where the irradiance departs from a
-//     linear function between neighbouring samples (shadow edges, terminators) the sampling
-//     is refined, level by level, down to a spacing where the near field holds a small part
-//     of Rd (sample_surface below); where no part of the image is within reach it is coarser.
+//     over pi). Every render thread that asks for a cloud while it is being built takes part
+//     in building it (its own sampler), and the result does not depend on which thread did
+//     what. Where the irradiance departs from a linear function between neighbouring samples
+//     (shadow edges, terminators) the sampling is refined, level by level, down to a spacing
+//     where the near field holds a small part of Rd (sample_surface); where no part of the
+//     image is within reach it is coarser.
 //  2. At a shading point x seen from direction wo: pixel += Ft(eta, cos_o) M(x) (for another
 //     profile than the dipole: its exit factor, RadialProfile::exit_factor), where M(x),
 //     the radiant exitance, is Jensen 2001's integral of Rd(|x - p|) E_t(p) over the surface.
@@ -30,6 +30,12 @@
 //  3. The single-scattering term is a BRDF (Dipole::single_scatter_brdf) lit by the ordinary
 //     light loop: the finish model's brdf includes it.
 // Lengths are scene units (Medium::mm_per_unit converts the published 1/mm coefficients).
+//
+// The parts, lowest first: dipole.h and exact_profile.h (ss_profile.h's tables) behind
+// radial_profile.h; rd_profile.h (a profile's table for the octree); slab.h (thin slabs);
+// point_cloud.h (the samples and the octree); subsurface_sampling.h (sampling an object);
+// cloud_cache.h, slab_cache.h (built once, read lock-free); subsurface_stats.h. This header
+// includes them all: the finish adapter and the patches see the whole finish through it.
 #pragma once
 
 #include <memory>

@@ -288,7 +288,7 @@ public:
     // computed at construction on a ~1 deg midpoint grid of the (interpolated) table with
     // exact cos*sin weights per theta_r band (so a constant table integrates exactly), summed
     // as per-node weights times the stored values (the same integral, a node's work instead of
-    // a cell's: a 1 deg RGB table's albedo takes ~20 ms instead of ~0.3 s).
+    // a cell's).
     // One entry per theta_i node; anisotropic tables: mean over the phi_i nodes. Half/
     // difference tables have no theta_i axis: entries every 2 deg (albedo_node_deg), each
     // integrated over the half vector (dw_o = 4 cos(theta_d) dw_h) on the table's own
@@ -436,12 +436,11 @@ constexpr size_t kTableFixedHeader = 112;
 constexpr uint32_t kFlagFolded = 1u << 0;
 constexpr uint32_t kFlagNoDataFilled = 1u << 1;
 constexpr uint32_t kUnitsPerSr = 1;
-// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md). A sharp lobe at normal
-// incidence peaks near 1e4 (Beckmann m = 0.001: 8e4), but a conductor's 1/(4 cos_i cos_o) near
-// grazing goes further (a half/difference table of Beckmann m = 0.02 holds 2.6e6 at
-// theta_d = 89.6 deg); a value above 1e10 is a unit or scaling error, or damage. The bound keeps every
-// product the renderer forms (pi f cos, the finish's scale <= 1e6, the light's colour, sums over
-// lights and albedo integrals) far inside float range: 1e38 in a table rendered inf pixels.
+// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md says why 1e10): far above
+// any sharp lobe, a conductor's 1/(4 cos_i cos_o) near grazing included, and low enough that
+// every product the renderer forms (pi f cos, the finish's scale <= 1e6, the light's colour,
+// sums over lights and albedo integrals) stays far inside float range. Above it: a unit or
+// scaling error, or damage.
 constexpr double kMaxTableValue = 1e10;
 
 struct TableHeader {
