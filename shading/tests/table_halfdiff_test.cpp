@@ -446,7 +446,7 @@ TEST(HalfDiffFile, EveryMalformedHeaderFieldNamesItsOffset) {
         uint64_t offset;
         const char* says;
     };
-    const Case cases[] = {
+    const Case cases[] = {  // one row per damaged header field: rows alike by design
         {with_u32(8, 2), 8, "version 1"},
         {with_u32(12, 128), 12, "payload offset"},
         {with_u32(16, 4), 16, "3 (half/difference)"},
