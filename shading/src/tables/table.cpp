@@ -10,7 +10,6 @@
 #include <sstream>
 
 #include "shading/core/format.h"
-#include "shading/tables/table_sampler.h"
 
 namespace shading {
 
@@ -74,31 +73,6 @@ BrdfTable::BrdfTable(const BrdfTable& o)
       fold_row_(o.fold_row_) {
     std::copy(o.stride_, o.stride_ + 4, stride_);
     std::copy(o.inv_step_, o.inv_step_ + 4, inv_step_);
-}
-
-const TableSampler* BrdfTable::sampler() const {
-    if (geom_.layout == TableLayout::Anisotropic) return nullptr;  // the generic mixture
-    if (const TableSampler* s = sampler_ready_.load(std::memory_order_acquire)) return s;
-    std::call_once(sampler_once_, [this] {
-        sampler_ = std::make_unique<const TableSampler>(*this);
-        sampler_ready_.store(sampler_.get(), std::memory_order_release);
-    });
-    return sampler_.get();
-}
-
-size_t BrdfTable::sampler_bytes() const {
-    const TableSampler* s = sampler_ready_.load(std::memory_order_acquire);
-    return s ? s->bytes_used() : 0;
-}
-
-Vec3 BrdfTable::sample(const Vec3& wo, double u1, double u2) const {
-    const TableSampler* s = sampler();
-    return s ? s->sample(wo, u1, u2) : Brdf::sample(wo, u1, u2);
-}
-
-double BrdfTable::pdf(const Vec3& wo, const Vec3& wi) const {
-    const TableSampler* s = sampler();
-    return s ? s->pdf(wo, wi) : Brdf::pdf(wo, wi);
 }
 
 uint64_t BrdfTable::offset(const uint32_t idx[4]) const {

@@ -1,6 +1,7 @@
 // Internal to the exact-profile tables (ss_profile.h): the radial interpolant, the inside-radiance
 // polynomial and the tail, shared by building the tables (ss_profile_build.cpp) and evaluating
-// them (ss_profile.cpp), so both read a record the same way.
+// them (ss_profile.cpp), so both read a record the same way (the polynomial's integrals:
+// ss_profile_curve.cpp).
 #pragma once
 
 #include <algorithm>
@@ -8,7 +9,6 @@
 #include <string>
 #include <vector>
 
-#include "shading/brdf/fresnel.h"
 #include "shading/core/format.h"
 #include "shading/core/quadrature.h"
 #include "shading/core/vec.h"
@@ -27,39 +27,19 @@ inline std::string num(double v) { return detail::fmt(v, 9); }
 // McSettings::radiance_cosines (the Monte Carlo's next-event estimate is made there).
 inline double angle_node(int j, int n) { return 0.5 * (1.0 - std::cos(kPi * (j + 0.5) / (n - 0.5))); }
 // Lagrange polynomial through (angle_node(j), v[j]) evaluated at mu.
-inline double angle_poly(const std::vector<double>& v, double mu) {
-    const int n = int(v.size());
-    double sum = 0;
-    for (int j = 0; j < n; ++j) {
-        const double xj = angle_node(j, n);
-        double l = 1.0;
-        for (int i = 0; i < n; ++i)
-            if (i != j) l *= (mu - angle_node(i, n)) / (xj - angle_node(i, n));
-        sum += l * v[j];
-    }
-    return sum;
-}
-
+double angle_poly(const std::vector<double>& v, double mu);
 // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) mu_o dmu_o of inside-radiance samples I (a 512-step
 // midpoint rule, I clamped at 0): the exitance the samples imply, times eta^2 / pi.
-inline double exit_sum(const std::vector<double>& samples, double eta) {
-    double sum = 0;
-    const int steps = 512;
-    for (int i = 0; i < steps; ++i) {
-        const double mo = (i + 0.5) / steps;
-        const double mi = std::sqrt(std::max(0.0, 1.0 - (1.0 - mo * mo) / (eta * eta)));
-        sum += 2.0 * (1.0 - fresnel_dielectric(mo, eta)) * std::max(0.0, angle_poly(samples, mi)) * mo / steps;
-    }
-    return sum;
-}
+double exit_sum(const std::vector<double>& samples, double eta);
 
 // Tail shape (1 + k rho) exp(-k rho) / rho^3 and its integral of 2 pi rho from R to infinity.
 inline double tail_shape(double k, double rho) { return (1 + k * rho) * std::exp(-k * rho) / (rho * rho * rho); }
 inline double tail_flux(double k, double R) { return 2 * kPi * std::exp(-k * R) / R; }
 
-// The radial interpolant. // Node 0 at rho = 0, nodes b >= 1 uniformly spaced in x = ln rho. Segment 0 [0, rho_1] is linear
-// in rho between the two values; segments b >= 1 are cubic Hermite in x on y = ln Rd with
-// central-difference tangents (one-sided at the ends): C1 everywhere from rho_1 on.
+// The radial interpolant: node 0 at rho = 0, nodes b >= 1 uniformly spaced in x = ln rho.
+// Segment 0 [0, rho_1] is linear in rho between the two values; segments b >= 1 are cubic
+// Hermite in x on y = ln Rd with central-difference tangents (one-sided at the ends): C1
+// everywhere from rho_1 on.
 struct RadialCurve {
     const double* rho = nullptr;  // nodes
     const double* y = nullptr;    // ln value at the nodes

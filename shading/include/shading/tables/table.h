@@ -342,7 +342,11 @@ private:
     float pole_hd_[3] = {0, 0, 0};
     std::vector<uint64_t> fold_row_;  // folded tables: offset of pair (a, a) minus a rows, per a
     mutable std::once_flag sampler_once_;
-    mutable std::unique_ptr<const TableSampler> sampler_;
+    // The sampler is built and deleted by table_sampler.cpp: the lookups need nothing of it.
+    struct SamplerDeleter {
+        void operator()(const TableSampler* s) const;
+    };
+    mutable std::unique_ptr<const TableSampler, SamplerDeleter> sampler_;
     mutable std::atomic<const TableSampler*> sampler_ready_{nullptr};
 };
 
