@@ -22,10 +22,30 @@ inline void fuzz_check(bool ok, const char* what) {
 // the payload get past the checksum. False when the data has no such offset.
 inline bool fix_checksum(const uint8_t* data, size_t size, std::vector<uint8_t>& out) {
     if (size < shading::kTableFixedHeader) return false;
-    const uint32_t off = uint32_t(data[12]) | uint32_t(data[13]) << 8 | uint32_t(data[14]) << 16 | uint32_t(data[15]) << 24;
+    const uint32_t off = shading::bytes::rd_u32(data + 12);
     if (off > size) return false;
     out.assign(data, data + size);
-    const uint64_t sum = shading::fnv1a64(out.data() + off, size - off);
-    for (int k = 0; k < 8; ++k) out[88 + k] = uint8_t(sum >> (8 * k));
+    shading::bytes::wr_u64(out, 88, shading::fnv1a64(out.data() + off, size - off));
     return true;
+}
+
+// The header of a .brdf image, or false where parse_table_header refuses it (a TableError,
+// the expected outcome for most inputs; anything else is a crash).
+inline bool table_header(const uint8_t* data, size_t size, shading::TableHeader* h) {
+    try {
+        *h = shading::parse_table_header(data, size, "fuzz.brdf");
+    } catch (const shading::TableError&) {
+        return false;
+    }
+    return true;
+}
+
+// A target's whole run: `check` on the input as given, then on a copy whose checksum `fix`
+// made right (where it can), so mutations of the payload reach the checks behind it.
+template <class Check, class Fix>
+int run_with_fixed_checksum(const uint8_t* data, size_t size, Check check, Fix fix) {
+    check(data, size);
+    std::vector<uint8_t> fixed;
+    if (fix(data, size, fixed)) check(fixed.data(), fixed.size());
+    return 0;
 }

@@ -43,6 +43,51 @@ def refresh_checksum(d):
     return bytes(d)
 
 
+def ssp_fix(d):
+    """An .ssp image with its checksum (bytes 24..31: FNV-1a of the file, those bytes as zeros) made right."""
+    d = bytearray(d)
+    struct.pack_into("<Q", d, 24, 0)
+    struct.pack_into("<Q", d, 24, fnv1a64(d))
+    return bytes(d)
+
+
+def broken_framing(base, header_cut, payload_cut, magic):
+    """The damage every format gets: empty, the magic alone, the header cut at `header_cut`,
+    `payload_cut` bytes missing at the end, four trailing bytes, another `magic`."""
+    return {"empty": b"", "magic-only": base[:8], "truncated-header": base[:header_cut],
+            "truncated-payload": base[:len(base) - payload_cut], "trailing-bytes": base + b"\0\0\0\0",
+            "wrong-magic": magic + base[8:]}
+
+
+#: Where make_files puts the output file in a command.
+OUT = object()
+
+
+def patcher(base, fixer):
+    """patched(fmt, at, value, fix=False): `base` with one field overwritten (struct format
+    `fmt` at byte `at`), its checksum made right by `fixer` when `fix`."""
+    def patched(fmt, at, value, fix=False):
+        d = bytearray(base)
+        struct.pack_into(fmt, d, at, value)
+        return fixer(d) if fix else bytes(d)
+    return patched
+
+
+def make_files(runs, ext, directory, stdout=None, stderr=None):
+    """Runs each command of `runs` ({name: argv, OUT where the output file goes}), stores each
+    output as NAME.EXT in `directory`; returns {name: its bytes}."""
+    made = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, argv in runs.items():
+            path = os.path.join(tmp, name + ext)
+            subprocess.run([path if a is OUT else a for a in argv], check=True, stdout=stdout, stderr=stderr)
+            with open(path, "rb") as f:
+                made[name] = f.read()
+            with open(os.path.join(directory, name + ext), "wb") as f:
+                f.write(made[name])
+    return made
+
+
 def main(brdftool, out):
     tdir, mdir = os.path.join(out, "table"), os.path.join(out, "merl")
     os.makedirs(tdir, exist_ok=True)
@@ -52,44 +97,30 @@ def main(brdftool, out):
         with open(os.path.join(directory, name), "wb") as f:
             f.write(data)
 
-    good = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        runs = {
-            "lambert-30": ["tabulate", "lambert rho=0.5", "--step", "30"],
-            "lambert-30-fold": ["tabulate", "lambert rho=0.5", "--step", "30", "--fold"],
-            "phong-15-grey": ["tabulate", "phong_normalized kd=0.2 ks=0.5 n=30", "--step", "15", "--channels", "1"],
-            "microfacet-30-fold-grey": ["tabulate", "microfacet m=0.3 f=dielectric eta=1.5", "--step", "30",
-                                        "--fold", "--channels", "1"],
-            "ward-aniso-30-90": ["tabulate", "ward ax=0.05 ay=0.3 rho_s=0.25", "--layout", "aniso",
-                                 "--step", "30", "--phi-step", "90"],
-            "measured-15": ["measured-like", "lambert rho=0.4", "--step", "15", "--missing", "0.1", "--seed", "3"],
-            "halfdiff-8x6x10": ["tabulate", "microfacet m=0.2 f=dielectric eta=1.5 kd=0.2 rho_s=0.8", "--layout",
-                                "halfdiff", "--nodes", "8,6,10"],
-            "halfdiff-6x4x8-grey": ["tabulate", "microfacet m=0.05 f=conductor n=0.2 k=3", "--layout", "halfdiff",
-                                    "--nodes", "6,4,8", "--channels", "1"],
-        }
-        for name, args in runs.items():
-            path = os.path.join(tmp, name + ".brdf")
-            subprocess.run([brdftool, args[0], args[1], "-o", path, *args[2:]], check=True,
-                           stdout=subprocess.DEVNULL)
-            good[name] = open(path, "rb").read()
-            put(tdir, name + ".brdf", good[name])
+    tables = {
+        "lambert-30": ["tabulate", "lambert rho=0.5", "--step", "30"],
+        "lambert-30-fold": ["tabulate", "lambert rho=0.5", "--step", "30", "--fold"],
+        "phong-15-grey": ["tabulate", "phong_normalized kd=0.2 ks=0.5 n=30", "--step", "15", "--channels", "1"],
+        "microfacet-30-fold-grey": ["tabulate", "microfacet m=0.3 f=dielectric eta=1.5", "--step", "30",
+                                    "--fold", "--channels", "1"],
+        "ward-aniso-30-90": ["tabulate", "ward ax=0.05 ay=0.3 rho_s=0.25", "--layout", "aniso",
+                             "--step", "30", "--phi-step", "90"],
+        "measured-15": ["measured-like", "lambert rho=0.4", "--step", "15", "--missing", "0.1", "--seed", "3"],
+        "halfdiff-8x6x10": ["tabulate", "microfacet m=0.2 f=dielectric eta=1.5 kd=0.2 rho_s=0.8", "--layout",
+                            "halfdiff", "--nodes", "8,6,10"],
+        "halfdiff-6x4x8-grey": ["tabulate", "microfacet m=0.05 f=conductor n=0.2 k=3", "--layout", "halfdiff",
+                                "--nodes", "6,4,8", "--channels", "1"],
+    }
+    good = make_files({name: [brdftool, a[0], a[1], "-o", OUT, *a[2:]] for name, a in tables.items()}, ".brdf", tdir,
+                      stdout=subprocess.DEVNULL)
 
     base = good["lambert-30"]
     off = struct.unpack_from("<I", base, 12)[0]
 
-    def patched(fmt, at, value, fix=False):
-        d = bytearray(base)
-        struct.pack_into(fmt, d, at, value)
-        return refresh_checksum(d) if fix else bytes(d)
+    patched = patcher(base, refresh_checksum)
 
     bad = {
-        "empty": b"",
-        "magic-only": base[:8],
-        "truncated-header": base[:60],
-        "truncated-payload": base[:len(base) - 7],
-        "trailing-bytes": base + b"\0\0\0\0",
-        "wrong-magic": b"PVBRDX\0\0" + base[8:],
+        **broken_framing(base, 60, 7, b"PVBRDX\0\0"),
         "version-2": patched("<I", 8, 2),
         "layout-4": patched("<I", 16, 4),
         "channels-2": patched("<I", 20, 2),
@@ -110,10 +141,7 @@ def main(brdftool, out):
     hd = good["halfdiff-8x6x10"]
     hd_off = struct.unpack_from("<I", hd, 12)[0]
 
-    def hd_patched(fmt, at, value, fix=False):
-        d = bytearray(hd)
-        struct.pack_into(fmt, d, at, value)
-        return refresh_checksum(d) if fix else bytes(d)
+    hd_patched = patcher(hd, refresh_checksum)
 
     bad.update({
         "hd-folded": hd_patched("<I", 24, 1),
@@ -158,41 +186,21 @@ def main(brdftool, out):
     os.makedirs(sdir, exist_ok=True)
     sstool = os.path.join(os.path.dirname(brdftool), "sstool")
 
-    def ssp_fix(d):
-        d = bytearray(d)
-        struct.pack_into("<Q", d, 24, 0)
-        struct.pack_into("<Q", d, 24, fnv1a64(d))
-        return bytes(d)
-
-    sgood = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        runs = {
-            "one-node": ["--g", "0", "--eta", "1"],
-            "two-by-two": ["--g", "0,0.5", "--eta", "1,1.5"],
-            "slabs": ["--g", "0", "--eta", "1.33", "--thickness", "1,4"],
-        }
-        for name, args in runs.items():
-            path = os.path.join(tmp, name + ".ssp")
-            subprocess.run([sstool, "build", "-o", path, "--albedos", "4", "--photons", "300", "--short-photons", "0",
-                            "--threads", "1", "--quiet", *args], check=True, stderr=subprocess.DEVNULL)
-            sgood[name] = open(path, "rb").read()
-            put(sdir, name + ".ssp", sgood[name])
+    profiles = {
+        "one-node": ["--g", "0", "--eta", "1"],
+        "two-by-two": ["--g", "0,0.5", "--eta", "1,1.5"],
+        "slabs": ["--g", "0", "--eta", "1.33", "--thickness", "1,4"],
+    }
+    sgood = make_files({name: [sstool, "build", "-o", OUT, "--albedos", "4", "--photons", "300", "--short-photons", "0",
+                               "--threads", "1", "--quiet", *a] for name, a in profiles.items()}, ".ssp", sdir,
+                       stderr=subprocess.DEVNULL)
     sb = sgood["one-node"]
     soff = struct.unpack_from("<I", sb, 12)[0]
-
-    def sp(fmt, at, value, fix=False):
-        d = bytearray(sb)
-        struct.pack_into(fmt, d, at, value)
-        return ssp_fix(d) if fix else bytes(d)
+    sp = patcher(sb, ssp_fix)
 
     sbad = {
-        "empty": b"",
-        "magic-only": sb[:8],
-        "truncated-header": sb[:100],
+        **broken_framing(sb, 100, 5, b"PVSSPROX"),
         "truncated-axes": sb[:170],
-        "truncated-payload": sb[:len(sb) - 5],
-        "trailing-bytes": sb + b"\0\0\0\0",
-        "wrong-magic": b"PVSSPROX" + sb[8:],
         "version-2": sp("<I", 8, 2, fix=True),
         "flags-unknown": sp("<I", 36, 4, fix=True),
         "flags-slab-one-face": sp("<I", 36, 1, fix=True),

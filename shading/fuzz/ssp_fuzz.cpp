@@ -24,8 +24,7 @@ namespace {
 bool fix_ssp_checksum(const uint8_t* data, size_t size, std::vector<uint8_t>& out) {
     if (size < 32) return false;
     out.assign(data, data + size);
-    const uint64_t sum = profile_file_checksum(out.data(), size);
-    for (int k = 0; k < 8; ++k) out[24 + k] = uint8_t(sum >> (8 * k));
+    bytes::wr_u64(out, 24, profile_file_checksum(out.data(), size));
     return true;
 }
 
@@ -74,8 +73,5 @@ void load(const uint8_t* data, size_t size) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-    load(data, size);
-    std::vector<uint8_t> fixed;
-    if (fix_ssp_checksum(data, size, fixed)) load(fixed.data(), fixed.size());
-    return 0;
+    return run_with_fixed_checksum(data, size, load, fix_ssp_checksum);
 }

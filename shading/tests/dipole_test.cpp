@@ -19,8 +19,6 @@ using namespace shading;
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
-
 // Composite Simpson on [a, b] with n (even) intervals.
 double simpson(const std::function<double(double)>& f, double a, double b, int n) {
     double h = (b - a) / n, s = f(a) + f(b);

@@ -22,6 +22,7 @@
 #include "shading/brdf/model_spec.h"
 #include "shading/brdf/models.h"
 #include "shading/tables/table.h"
+#include "table_files.h"
 
 using namespace shading;
 
@@ -193,17 +194,7 @@ ErrorParts split_error(const std::string& msg) {
     return p;
 }
 
-template <class Fn>
-std::string table_error_of(Fn&& fn) {
-    try {
-        fn();
-    } catch (const TableError& e) {
-        return e.what();
-    } catch (const std::exception& e) {
-        return std::string("WRONG EXCEPTION TYPE: ") + e.what();
-    }
-    return "NO EXCEPTION";
-}
+using table_files::table_error_of;
 
 const char* kMicrofacetSpec = "microfacet d=beckmann m=0.3 f=dielectric eta=1.5 kd=0.2 rho_s=0.8";
 

@@ -9,24 +9,11 @@
 
 #include "shading/tables/merl.h"
 #include "shading/tables/table.h"
+#include "table_files.h"
 
 using namespace shading;
 
-namespace {
-
-template <class F>
-std::string table_error_of(F&& f) {
-    try {
-        f();
-    } catch (const TableError& e) {
-        return e.what();
-    } catch (const std::exception& e) {
-        return std::string("WRONG EXCEPTION: ") + e.what();
-    }
-    return "NO EXCEPTION";
-}
-
-}  // namespace
+using table_files::table_error_of;
 
 // MerlBrdf's constructor took +Inf samples for data (only parse() checked for them): the
 // lookup's "no data" test is `>= 0`, which +Inf passes, so a bin shone infinitely.

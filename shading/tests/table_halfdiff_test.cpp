@@ -17,6 +17,7 @@
 #include "shading/brdf/model_spec.h"
 #include "shading/brdf/models.h"
 #include "shading/tables/table.h"
+#include "table_files.h"
 
 using namespace shading;
 
@@ -52,26 +53,10 @@ double rel_diff(const Rgb& a, const Rgb& b) {
 }
 
 std::string error_of(const std::vector<uint8_t>& b, const LoadOptions& opt = {}) {
-    try {
-        load_table(b.data(), b.size(), "hd.brdf", opt);
-    } catch (const TableError& e) {
-        return e.what();
-    }
-    return "(no error)";
+    return table_files::load_error(b, "hd.brdf", opt);
 }
-
-// "hd.brdf: offset N: expected X, found Y" with N = `offset`.
-void expect_error_at(const std::string& msg, uint64_t offset) {
-    EXPECT_TRUE(std::regex_match(msg, std::regex("hd\\.brdf: offset [0-9]+: expected .+, found .+"))) << msg;
-    EXPECT_NE(msg.find("offset " + std::to_string(offset) + ":"), std::string::npos) << msg;
-}
-
-void fix_checksum(std::vector<uint8_t>& b) {
-    uint32_t off;
-    std::memcpy(&off, &b[12], 4);
-    const uint64_t sum = fnv1a64(b.data() + off, b.size() - off);
-    std::memcpy(&b[88], &sum, 8);
-}
+void expect_error_at(const std::string& msg, uint64_t offset) { table_files::expect_error_at(msg, "hd.brdf", offset); }
+using table_files::fix_checksum;
 
 }  // namespace
 
@@ -453,27 +438,15 @@ TEST(HalfDiffFile, EveryMalformedHeaderFieldNamesItsOffset) {
     auto t = scrambled(TableGeometry::halfdiff(10, 9, 14));
     const std::vector<uint8_t> good = encode_table(*t);
     ASSERT_EQ(error_of(good), "(no error)");
-    auto with_u32 = [&](size_t at, uint32_t v) {
-        std::vector<uint8_t> b = good;
-        std::memcpy(&b[at], &v, 4);
-        return b;
-    };
-    auto with_f64 = [&](size_t at, double v) {
-        std::vector<uint8_t> b = good;
-        std::memcpy(&b[at], &v, 8);
-        return b;
-    };
-    auto with_u64 = [&](size_t at, uint64_t v) {
-        std::vector<uint8_t> b = good;
-        std::memcpy(&b[at], &v, 8);
-        return b;
-    };
+    auto with_u32 = [&](size_t at, uint32_t v) { return table_files::with_value(good, at, v); };
+    auto with_f64 = [&](size_t at, double v) { return table_files::with_value(good, at, v); };
+    auto with_u64 = [&](size_t at, uint64_t v) { return table_files::with_value(good, at, v); };
     struct Case {
         std::vector<uint8_t> bytes;
         uint64_t offset;
         const char* says;
     };
-    const Case cases[] = {
+    const Case cases[] = {  // one row per damaged header field: rows alike by design
         {with_u32(8, 2), 8, "version 1"},
         {with_u32(12, 128), 12, "payload offset"},
         {with_u32(16, 4), 16, "3 (half/difference)"},

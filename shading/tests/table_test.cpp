@@ -17,6 +17,7 @@
 #include "shading/core/bytes.h"
 #include "shading/brdf/models.h"
 #include "shading/tables/table.h"
+#include "table_files.h"
 
 // The replacement operators below pair malloc with free on purpose; GCC's heuristic
 // cannot see that both sides are replaced.
@@ -100,27 +101,11 @@ void expect_rgb_eq(const Rgb& a, const Rgb& b) {
 
 std::vector<uint8_t> encoded(const BrdfTable& t) { return encode_table(t); }
 
-// Rewrites the checksum after a payload edit, so later checks are reached.
-void fix_checksum(std::vector<uint8_t>& b) {
-    uint32_t off;
-    std::memcpy(&off, &b[12], 4);
-    uint64_t sum = fnv1a64(b.data() + off, b.size() - off);
-    std::memcpy(&b[88], &sum, 8);
-}
-
+using table_files::fix_checksum;
 std::string load_error(const std::vector<uint8_t>& b, const LoadOptions& opt = {}) {
-    try {
-        load_table(b.data(), b.size(), "t.brdf", opt);
-    } catch (const TableError& e) {
-        return e.what();
-    }
-    return "(no error)";
+    return table_files::load_error(b, "t.brdf", opt);
 }
-
-void expect_error_format(const std::string& msg, uint64_t offset) {
-    EXPECT_TRUE(std::regex_match(msg, std::regex("t\\.brdf: offset [0-9]+: expected .+, found .+"))) << msg;
-    EXPECT_NE(msg.find("offset " + std::to_string(offset) + ":"), std::string::npos) << msg;
-}
+void expect_error_format(const std::string& msg, uint64_t offset) { table_files::expect_error_at(msg, "t.brdf", offset); }
 
 }  // namespace
 

@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-CPP = HERE.parent / "src" / "media_presets.cpp"
+CPP = HERE.parent / "src" / "subsurface" / "media_presets.cpp"
 BEGIN = "// BEGIN GENERATED TABLE (shading/tools/gen_presets.py; do not edit by hand)\n"
 END = "// END GENERATED TABLE\n"
 
@@ -143,15 +143,23 @@ def build(csv_path: Path) -> str:
                              "sigma_s is sigma_s'/(1-g) rounded to 5 decimals")
         else:
             sys.exit(f"{where}: unknown paper {paper!r}")
-        out.append(
-            f"    {{{cstr(name)}, {cstr(paper)},\n"
-            f"     {crgb(ssp)}, {crgb(sa)},\n"
-            f"     {crgb(g)}, {crgb(ss)}, {cnum(eta)},\n"
-            f"     {crgb(rd_tab)}, {crgb(rd_chk)},\n"
-            f"     {cstr('; '.join(notes))}}},\n")
+        # A row without a paper Rd, a check Rd or a note leaves those to MediumPreset's
+        # defaults (NaN, NaN, ""): the Narasimhan rows are two lines of numbers each.
+        if all(math.isnan(x) for x in list(rd_tab) + list(rd_chk)) and not notes:
+            out.append(
+                f"    {{{cstr(name)}, {cstr(paper)}, {crgb(ssp)}, {crgb(sa)},\n"
+                f"     {crgb(g)}, {crgb(ss)}, {cnum(eta)}}},\n")
+        else:
+            out.append(
+                f"    {{{cstr(name)}, {cstr(paper)},\n"
+                f"     {crgb(ssp)}, {crgb(sa)},\n"
+                f"     {crgb(g)}, {crgb(ss)}, {cnum(eta)},\n"
+                f"     {crgb(rd_tab)}, {crgb(rd_chk)},\n"
+                f"     {cstr('; '.join(notes))}}},\n")
     sha = hashlib.sha256(raw).hexdigest()
     return (BEGIN + f"// Source: media_presets.csv, sha256 {sha}\n"
             "// Fields: name, paper, sigma_s', sigma_a, g, sigma_s, eta, Rd (paper), Rd (CSV check), note\n"
+            "// (the last three, where absent, are MediumPreset's defaults: NaN, NaN, \"\"; rows alike by design)\n"
             "const MediumPreset kPresets[] = {\n" + "".join(out) + "};\n" + END)
 
 

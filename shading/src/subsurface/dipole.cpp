@@ -10,7 +10,6 @@ namespace shading {
 
 namespace {
 
-constexpr double kInf = std::numeric_limits<double>::infinity();
 // Largest coefficient (per length unit) accepted: keeps 1/zr^2 = sigma_t'^2 (the peak of Rd at
 // r = 0) far below the double range, so every result stays finite.
 constexpr double kMaxCoefficient = 1e100;

@@ -7,13 +7,11 @@
 #include <limits>
 #include <stdexcept>
 
-#include "shading/subsurface/subsurface.h"
+#include "shading/subsurface/rd_profile.h"
 
 namespace shading {
 
 namespace {
-
-constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // One point source at signed height z above the evaluation plane (the plane's normal pointing
 // towards the source is +): z (1 + s d) e^{-s d} / d^3, d = sqrt(r^2 + z^2) (the dipole's term).
@@ -117,110 +115,6 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
     // totals above are the independent check (SlabProfile tests).
     out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff);
     out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
-    return out;
-}
-
-SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& k,
-                                      int* tabulated) {
-    if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("make_exact_slab_profiles: thickness must be finite and > 0");
-    const ProfileTables* tables = model.slab_tables();
-    if (tabulated) *tabulated = 0;
-    if (!tables) return make_slab_profiles(dipole, d, k);
-    // Per channel: the tables' faces (shared: the profiles' functions outlive this call), or
-    // the multipole.
-    struct Channel {
-        std::shared_ptr<const ChannelProfile> r, t;
-        double st = 0, t_scale = 1;
-        SlabChannel multipole;
-    };
-    auto ch = std::make_shared<std::array<Channel, 3>>();
-    SlabProfiles out;
-    out.d = d;
-    double scale = kInf, cutoff = 0;
-    int from_tables = 0, scattering = 0;
-    for (int c = 0; c < 3; ++c) {
-        Channel& x = (*ch)[c];
-        const ChannelProfile* half = model.channel(c);
-        if (!half) continue;  // does not scatter: nothing diffuses
-        ++scattering;
-        const double st = model.sigma_t_prime(c);
-        try {
-            x.r = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 0);
-            x.t = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 1);
-        } catch (const std::invalid_argument&) {  // d outside the tables' slab nodes
-            x.r.reset();
-            x.t.reset();
-        }
-        if (x.r) {
-            ++from_tables;
-            x.st = st;
-            // T: the tables' total of all orders in the multipole's radial shape (the tables'
-            // transmission profile is photon noise near rho = 0 beyond a few mfp: slab.h).
-            x.multipole = SlabChannel::make(dipole.channel(c), d);
-            const double t_all = x.t->total() + x.t->single(), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
-            x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
-            out.R_total[c] = x.r->total();
-            out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;
-            if (x.r->total() > 0) cutoff = std::max(cutoff, std::min(x.r->radius_containing(1.0 - 1e-6), 1e6) / st);
-            cutoff = std::max(cutoff, std::max(x.multipole.cutoff, 1.0 / st));
-            scale = std::min(scale, std::min(1.0 / st, x.multipole.empty ? d : x.multipole.z0));
-        } else {
-            x.multipole = SlabChannel::make(dipole.channel(c), d);
-            if (x.multipole.empty) continue;
-            out.R_total[c] = k[c] * x.multipole.R_total();
-            out.T_total[c] = x.multipole.T_total();
-            scale = std::min(scale, x.multipole.z0);
-            cutoff = std::max(cutoff, x.multipole.cutoff);
-        }
-    }
-    if (tabulated) *tabulated = from_tables;
-    if (!(cutoff > 0)) scale = cutoff = d;  // every channel empty
-    scale = std::min(scale, cutoff);
-    auto same = [ch, k](double r) {
-        Rgb v;
-        for (int c = 0; c < 3; ++c) {
-            const Channel& x = (*ch)[c];
-            v[c] = x.r ? x.st * x.st * x.r->rd(r * x.st) : x.multipole.empty ? 0.0 : k[c] * x.multipole.R(r);
-        }
-        return v;
-    };
-    auto transmit = [ch](double rho) {
-        Rgb v;
-        for (int c = 0; c < 3; ++c) {
-            const Channel& x = (*ch)[c];
-            v[c] = x.multipole.empty ? 0.0 : (x.t ? x.t_scale : 1.0) * x.multipole.T(rho);
-        }
-        return v;
-    };
-    // R with every channel from the tables: their disc integrals; otherwise numerically (as the
-    // multipole), and T always so.
-    RdProfile::Fn same_disc;
-    if (from_tables == scattering && scattering > 0) {
-        same_disc = [ch](double R) {
-            Rgb v;
-            for (int c = 0; c < 3; ++c)
-                if ((*ch)[c].r) v[c] = (*ch)[c].r->disc(R * (*ch)[c].st);
-            return v;
-        };
-    }
-    out.same = std::make_shared<const RdProfile>(same, same_disc, scale, cutoff);
-    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
-    // Each face's own exit distribution where the tables hold it (the transmitted light of a
-    // thin slab leaves more obliquely: pi L / M at normal 0.85 at 0.25 mfp against the
-    // half-space's 1.02; the harness Monte Carlo's transmitted radiance agrees, DIPOLE.md 6a).
-    if (from_tables > 0) {
-        const ExactProfile* half = &model;  // outlives the slab (Subsurface holds both)
-        out.exit = [ch, half](double cos_o, Rgb* same_exit, Rgb* opposite_exit) {
-            const Rgb h = half->exit_factor(cos_o);
-            *same_exit = h;
-            *opposite_exit = h;
-            for (int c = 0; c < 3; ++c)
-                if ((*ch)[c].r) {
-                    (*same_exit)[c] = (*ch)[c].r->exit_factor(cos_o);
-                    (*opposite_exit)[c] = (*ch)[c].t->exit_factor(cos_o);
-                }
-        };
-    }
     return out;
 }
 

@@ -12,7 +12,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "shading/subsurface/subsurface.h"
+#include "shading/subsurface/subsurface_sampling.h"
 
 namespace shading {
 

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "shading/brdf/fresnel.h"
+#include "shading/core/random.h"
 #include "shading/core/vec.h"
 
 namespace shading {
@@ -63,13 +64,7 @@ std::string McSettings::validate() const {
 namespace {
 
 // ---------------------------------------------------------------- random numbers
-// splitmix64 (Steele, Lea, Flood 2014) to seed xoshiro256** (Blackman, Vigna 2018).
-std::uint64_t splitmix64(std::uint64_t& x) {
-    std::uint64_t z = (x += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-}
+// xoshiro256** (Blackman, Vigna 2018), seeded by splitmix64 (core/random.h).
 struct Rng {
     std::uint64_t s[4];
     Rng(std::uint64_t seed, std::uint64_t stream, std::uint64_t index) {
@@ -87,7 +82,7 @@ struct Rng {
         s[3] = rotl(s[3], 45);
         return r;
     }
-    double uniform() { return double(next() >> 11) * 0x1.0p-53; }  // [0, 1)
+    double uniform() { return uniform_double(next()); }  // [0, 1)
 };
 
 // ---------------------------------------------------------------- tallies

@@ -51,11 +51,7 @@ using bytes::wr_f64;
 using bytes::wr_u32;
 using bytes::wr_u64;
 
-std::string hex64(uint64_t v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
-    return buf;
-}
+using detail::hex64;
 std::string quoted_bytes(const uint8_t* p, size_t n) {
     std::string s = "\"";
     for (size_t k = 0; k < n; ++k) {
@@ -101,11 +97,6 @@ std::string within_bound(const TableGeometry& g, uint64_t value_index, const cha
     std::snprintf(bound, sizeof bound, "%g", kMaxTableValue);
     return std::string("a value <= ") + bound + " (1/sr) at " + payload_label(g, value_index) +
            " (larger is a unit or scale error" + also + ": brdf_data/README.md)";
-}
-std::string float_text(float v) {
-    if (std::isnan(v)) return "nan";
-    if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-    return detail::fmt(v, 9);
 }
 
 }  // namespace
@@ -256,13 +247,13 @@ std::unique_ptr<BrdfTable> load_table(const uint8_t* data, size_t size, const st
     for (uint64_t k = 0; k < nv; ++k) {
         float v = rd_f32(p + 4 * k);
         if (std::isinf(v))
-            throw_table_error(name, h.payload_offset + 4 * k, "a finite value at " + payload_label(g, k), float_text(v));
+            throw_table_error(name, h.payload_offset + 4 * k, "a finite value at " + payload_label(g, k), detail::fmt_float(v));
         if (v > kMaxTableValue)
-            throw_table_error(name, h.payload_offset + 4 * k, within_bound(g, k, ", or damage"), float_text(v));
+            throw_table_error(name, h.payload_offset + 4 * k, within_bound(g, k, ", or damage"), detail::fmt_float(v));
         if (!(v >= 0)) {
             if (opt.nodata == NoDataPolicy::Reject)
                 throw_table_error(name, h.payload_offset + 4 * k,
-                                  "a value >= 0 at " + payload_label(g, k) + " (no-data policy: reject)", float_text(v));
+                                  "a value >= 0 at " + payload_label(g, k) + " (no-data policy: reject)", detail::fmt_float(v));
             nodata = true;
         }
     }
@@ -367,7 +358,7 @@ std::vector<uint8_t> encode_table(const BrdfTable& table) {
     // Never write what load_table refuses (a converted measurement, a tabulated model).
     for (size_t k = 0; k < v.size(); ++k)
         if (v[k] > kMaxTableValue)
-            throw_table_error("table", off + 4 * k, within_bound(g, k, ""), float_text(v[k]));
+            throw_table_error("table", off + 4 * k, within_bound(g, k, ""), detail::fmt_float(v[k]));
     std::vector<uint8_t> b(off + v.size() * 4, 0);
     std::memcpy(b.data(), kMagic, 8);
     wr_u32(b, 8, kTableVersion);

@@ -206,4 +206,33 @@ double TableSampler::pdf(const Vec3& wo, const Vec3& wi) const {
     return p * cos_i / (step_p_deg_ * kDegree * (sin2_[a + 1] - sin2_[a]));
 }
 
+// ---------------------------------------------------------------- the table's sampling
+
+const TableSampler* BrdfTable::sampler() const {
+    if (geom_.layout == TableLayout::Anisotropic) return nullptr;  // the generic mixture
+    if (const TableSampler* s = sampler_ready_.load(std::memory_order_acquire)) return s;
+    std::call_once(sampler_once_, [this] {
+        sampler_ = std::unique_ptr<const TableSampler, SamplerDeleter>(new TableSampler(*this));
+        sampler_ready_.store(sampler_.get(), std::memory_order_release);
+    });
+    return sampler_.get();
+}
+
+size_t BrdfTable::sampler_bytes() const {
+    const TableSampler* s = sampler_ready_.load(std::memory_order_acquire);
+    return s ? s->bytes_used() : 0;
+}
+
+Vec3 BrdfTable::sample(const Vec3& wo, double u1, double u2) const {
+    const TableSampler* s = sampler();
+    return s ? s->sample(wo, u1, u2) : Brdf::sample(wo, u1, u2);
+}
+
+double BrdfTable::pdf(const Vec3& wo, const Vec3& wi) const {
+    const TableSampler* s = sampler();
+    return s ? s->pdf(wo, wi) : Brdf::pdf(wo, wi);
+}
+
+void BrdfTable::SamplerDeleter::operator()(const TableSampler* s) const { delete s; }
+
 }  // namespace shading

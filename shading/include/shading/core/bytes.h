@@ -1,5 +1,6 @@
-// Internal: little-endian reads and writes of the binary formats (.brdf, MERL .binary, the
-// fitter's direct payload scan). One place for byte order, so every reader agrees.
+// Internal: little-endian reads and writes of the binary formats (.brdf, .ssp, MERL .binary, the
+// fitter's direct payload scan), and their checksum: every reader and writer of the library goes
+// through these, so they agree on byte order.
 #pragma once
 
 #include <cstddef>
@@ -50,12 +51,30 @@ inline void wr_f64(std::vector<uint8_t>& b, size_t at, double d) {
     wr_u64(b, at, u);
 }
 
+// Appended at the end of `b`.
+inline void put_u32(std::vector<uint8_t>& b, uint32_t v) {
+    for (int k = 0; k < 4; ++k) b.push_back(uint8_t(v >> (8 * k)));
+}
+inline void put_u64(std::vector<uint8_t>& b, uint64_t v) {
+    put_u32(b, uint32_t(v));
+    put_u32(b, uint32_t(v >> 32));
+}
+inline void put_f32(std::vector<uint8_t>& b, float f) {
+    uint32_t u;
+    std::memcpy(&u, &f, 4);
+    put_u32(b, u);
+}
+inline void put_f64(std::vector<uint8_t>& b, double d) {
+    uint64_t u;
+    std::memcpy(&u, &d, 8);
+    put_u64(b, u);
+}
+
 }  // namespace bytes
 
 // FNV-1a, 64 bit (offset basis 0xcbf29ce484222325, prime 0x100000001b3): the checksum of the
-// .brdf and .ssp formats.
-inline uint64_t fnv1a64(const uint8_t* data, size_t size) {
-    uint64_t h = 0xcbf29ce484222325ull;
+// .brdf and .ssp formats. `h`: the hash of the bytes before `data` (a hash over several pieces).
+inline uint64_t fnv1a64(const uint8_t* data, size_t size, uint64_t h = 0xcbf29ce484222325ull) {
     for (size_t k = 0; k < size; ++k) {
         h ^= data[k];
         h *= 0x100000001b3ull;

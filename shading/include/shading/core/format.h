@@ -1,6 +1,7 @@
 // Internal: number formatting for describe() strings, specs and error messages.
 #pragma once
 
+#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -10,10 +11,22 @@ namespace shading {
 namespace detail {
 
 // `digits` significant digits, shortest form (printf's %g: "0.3", "1e-05"); 17 digits
-// round-trip a double exactly, 9 a float. The one number formatter of the library.
+// round-trip a double exactly, 9 a float.
 inline std::string fmt(double v, int digits = 6) {
     char buf[40];
     std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+    return buf;
+}
+// A stored float as messages show it: "nan", "inf", "-inf" or 9 digits (the float exactly).
+inline std::string fmt_float(float v) {
+    if (std::isnan(v)) return "nan";
+    if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+    return fmt(v, 9);
+}
+// A checksum as the file formats' messages print it: "0x" and 16 hex digits.
+inline std::string hex64(uint64_t v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "0x%016llx", static_cast<unsigned long long>(v));
     return buf;
 }
 // A grey colour as one number, otherwise "r,g,b" (the form model specs accept).

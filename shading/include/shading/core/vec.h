@@ -6,12 +6,14 @@
 //  * wo points towards the viewer, wi towards the light; both leave the surface.
 //  * Brdf::f(wo, wi) returns the BRDF in 1/sr and EXCLUDES cos(theta_i).
 //  * POV-Ray has no 1/pi: its light colour acts as irradiance at normal incidence
-//    and its pixel values are pi x radiance. The one place that applies that
-//    factor is pov_weight() in brdf.h.
+//    and its pixel values are pi x radiance. A BRDF reaches POV through pov_weight()
+//    in brdf.h (pi f cos_i); the subsurface finish returns pixel values itself
+//    (RadialProfile::exit_factor is pi L / M).
 #pragma once
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -21,6 +23,7 @@ namespace shading {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kInvPi = 1.0 / kPi;
+constexpr double kInf = std::numeric_limits<double>::infinity();
 // Radians per degree and degrees per radian (tables and tools speak degrees).
 constexpr double kDegree = kPi / 180.0;
 constexpr double kRadToDeg = 180.0 / kPi;

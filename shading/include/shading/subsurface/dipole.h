@@ -11,7 +11,7 @@
 //    it and returned by it are in scene units, Rd(r) is per scene-unit^2, and the dimensionless
 //    totals do not depend on the unit.
 //  * BRDF-like terms return 1/sr and EXCLUDE cos(theta_i), like Brdf::f; POV's pi is applied
-//    only by pov_weight() in brdf.h.
+//    by pov_weight() in brdf.h.
 //  * Every value returned is finite and non-negative for valid media (Medium::validate).
 #pragma once
 
@@ -43,12 +43,12 @@ double refracted_cos(double cos_i, double eta);
 //             optically thinner side, no total internal reflection).
 //   eta == 1 exactly: 0 (no interface; the eta>=1 fit gives 0.0016 there, a fit residual).
 double fresnel_diffuse_reflectance_fit(double eta);
-// The same quantity by quadrature of fresnel_dielectric (relative error < 1e-10); about 0.13 ms.
+// The same quantity by quadrature of fresnel_dielectric (relative error < 1e-10): once per
+// medium, never per pixel.
 double fresnel_diffuse_reflectance_exact(double eta);
-// Where the fits hold: within 2e-3 of the exact Fdr (measured 1.5e-3 at most, at eta 1.001;
-// 5e-5 at eta 2, 7e-6 at 0.5). Outside, the eta >= 1 polynomial leaves the exact curve fast
-// (+0.016 at eta 3) and passes 1 at eta 3.87, where A = (1 + Fdr) / (1 - Fdr) changes sign:
-// every pixel of the dipole would be NaN. The eta < 1 fit is 0.009 low at eta 0.1.
+// Where the fits hold (within 2e-3 of the exact Fdr; DIPOLE.md 2 has the table). Outside, the
+// eta >= 1 polynomial passes 1 at eta 3.87, where A = (1 + Fdr) / (1 - Fdr) changes sign and
+// every pixel of the dipole would be NaN.
 constexpr double kFdrFitMinEta = 0.5, kFdrFitMaxEta = 2.0;
 
 // Henyey-Greenstein phase function p(cos) in 1/sr, cos = cosine between the propagation

@@ -7,6 +7,7 @@
 // and in each preset's `note`.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -23,9 +24,11 @@ struct MediumPreset {
     Rgb g;               // HG asymmetry; 0 for Jensen rows (that table gives sigma_s' only)
     Rgb sigma_s;         // scattering, 1/mm, = sigma_s' / (1 - g) (= sigma_s' where g = 0)
     double eta;          // relative index of refraction
-    Rgb rd_paper;        // Jensen 2001 Table 2 total Rd; NaN for Narasimhan rows
-    Rgb rd_dipole_check; // the CSV's recomputed closed-form Rd; NaN where the CSV has none
-    const char* note;    // transcription conflict and how it was resolved ("" if none)
+    // Jensen 2001 Table 2 total Rd; NaN for Narasimhan rows.
+    Rgb rd_paper = Rgb(std::numeric_limits<double>::quiet_NaN());
+    // The CSV's recomputed closed-form Rd; NaN where the CSV has none.
+    Rgb rd_dipole_check = Rgb(std::numeric_limits<double>::quiet_NaN());
+    const char* note = "";  // transcription conflict and how it was resolved ("" if none)
 
     // The preset as a Medium (sigma_s, sigma_a, g, eta) with the given scene unit.
     Medium medium(double mm_per_unit = 1.0) const;

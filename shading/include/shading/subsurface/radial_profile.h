@@ -2,19 +2,20 @@
 // (subsurface.h) integrates, per colour channel in SCENE units, behind one interface:
 //  * DipoleRadialProfile: Jensen et al. 2001's dipole (dipole.h), whose Rd approximates single
 //    and multiple scattering together, with Jensen's exit and entry factors Ft(cos);
-//  * ExactProfile: the exact multiple-scattering profile of the library's own Monte Carlo
-//    transport (ss_profile.h), with the exit distribution and incidence factor of the same
-//    transport; single scattering is the exact BRDF (Dipole::single_scatter_brdf), added once
-//    by the finish.
-// See shading/DIPOLE.md ("Exact profiles").
+//  * ExactProfile (exact_profile.h): the exact multiple-scattering profile of the library's
+//    own Monte Carlo transport (ss_profile.h).
+// A profile also gives its thin slabs (slab_profiles) for thin geometry; the table the octree
+// reads is make_rd_profile(profile). See shading/DIPOLE.md 6 and 10.
 #pragma once
 
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "shading/brdf/brdf.h"
 #include "shading/subsurface/dipole.h"
-#include "shading/subsurface/ss_profile.h"
+#include "shading/subsurface/rd_profile.h"
+#include "shading/subsurface/slab.h"
 
 namespace shading {
 
@@ -42,6 +43,18 @@ public:
     // add the single-scattering BRDF by default.
     virtual bool includes_single_scattering() const = 0;
     virtual std::string describe() const = 0;
+    // Thin geometry: the profiles of a slab of thickness d (scene units) of this medium, whose
+    // dipole is `dipole`. By default the multipole (slab.h) with R scaled per channel to this
+    // profile's half-space total (multipole_scale), so that a slab at the threshold reflects
+    // what the half-space does; T as it is.
+    virtual SlabProfiles slab_profiles(const Dipole& dipole, double d) const;
+    // What thin geometry falls back to with this profile, for the statistics ("": nothing).
+    virtual std::string slab_note() const { return ""; }
+
+protected:
+    // Per channel, this profile's half-space total rd_disc(inf) over the dipole's (1 where the
+    // dipole's is 0).
+    Rgb multipole_scale(const Dipole& dipole) const;
 };
 
 class DipoleRadialProfile final : public RadialProfile {
@@ -56,6 +69,8 @@ public:
     Rgb entry_factor(double cos_i) const override;
     bool includes_single_scattering() const override { return true; }
     std::string describe() const override { return "dipole"; }
+    // The multipole itself (its R meets this dipole's half-space).
+    SlabProfiles slab_profiles(const Dipole& dipole, double d) const override;
     const Dipole& dipole() const { return d_; }
 
 private:
@@ -63,46 +78,22 @@ private:
     double cutoff_ = 0;
 };
 
-class ExactProfile final : public RadialProfile {
+// The table the hierarchical evaluation reads (rd_profile.h) of a radial profile: its rd and
+// disc integral, scale = its smallest mean free path, r_max = its cutoff.
+std::shared_ptr<const RdProfile> make_rd_profile(std::shared_ptr<const RadialProfile> model);
+
+// RadialProfile::entry_factor(cos_i) / pi as a Brdf (wo ignored above the surface; the
+// dipole's: Ft(eta, cos_i) / pi): lit by the renderer's light loop it yields the transmitted
+// irradiance E_t at a point (the adapter's finish model for it: FinishModel::transmittance,
+// finish.h).
+class TransmittanceBrdf final : public Brdf {
 public:
-    // Per channel: reduced albedo alpha' = sigma_s' / (sigma_s' + sigma_a), g, eta of the medium;
-    // lengths scaled by sigma_t' = (sigma_s' + sigma_a) mm_per_unit. A g outside the tables is
-    // clamped to their range at the same reduced albedo (similarity; listed in notes()). Throws
-    // std::invalid_argument for an invalid medium or an eta outside the tables.
-    // `slab_tables` (optional; make brdf-data ships subsurface_slabs.ssp): exact reflection and
-    // transmission faces of slabs for thin geometry (slab.h make_exact_slab_profiles), used
-    // where they cover every scattering channel's (g, eta); slab_gap() says why they don't.
-    ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
-                 std::shared_ptr<const ProfileTables> slab_tables = nullptr);
-    Rgb rd(double r) const override;
-    Rgb rd_disc(double R) const override;
-    Rgb total() const override;
-    double cutoff() const override { return cutoff_; }
-    double mean_free_path() const override;
-    Rgb exit_factor(double cos_o) const override;
-    Rgb entry_factor(double cos_i) const override;
-    bool includes_single_scattering() const override { return false; }
-    std::string describe() const override { return "exact"; }
-    // Warnings for the user (g clamped to the tables).
-    const std::vector<std::string>& notes() const { return notes_; }
-    // The channel in transport units (nullptr for a channel that does not scatter).
-    const ChannelProfile* channel(int c) const { return ch_[c].get(); }
-    double sigma_t_prime(int c) const { return st_[c]; }  // per scene unit
-    double g(int c) const { return g_[c]; }                 // the medium's (not clamped)
-    double eta() const { return eta_; }
-    // The slab tables when they cover (g, eta) of every scattering channel, else nullptr; then
-    // slab_gap() says why (no file, or the g / ior outside it) for the statistics.
-    const ProfileTables* slab_tables() const { return slab_gap_.empty() ? slab_tables_.get() : nullptr; }
-    const std::string& slab_gap() const { return slab_gap_; }
+    explicit TransmittanceBrdf(std::shared_ptr<const RadialProfile> model);
+    Rgb f(const Vec3& wo, const Vec3& wi) const override;
+    std::string describe() const override;
 
 private:
-    std::shared_ptr<const ProfileTables> tables_, slab_tables_;
-    std::unique_ptr<ChannelProfile> ch_[3];
-    double st_[3] = {0, 0, 0}, g_[3] = {0, 0, 0};
-    std::string slab_gap_;
-    double eta_ = 1;
-    double cutoff_ = 0;
-    std::vector<std::string> notes_;
+    std::shared_ptr<const RadialProfile> model_;
 };
 
 }  // namespace shading

@@ -12,7 +12,6 @@
 #include <memory>
 
 #include "shading/subsurface/dipole.h"
-#include "shading/subsurface/radial_profile.h"
 
 namespace shading {
 
@@ -65,36 +64,21 @@ struct SlabProfiles {
     Rgb R_total, T_total;
     std::shared_ptr<const RdProfile> same, transmit;
     // Empty: the finish's half-space exit factor for both faces (the multipole). Set by
-    // make_exact_slab_profiles: pi L / M toward outside cosine cos_o of each face (the tables'
-    // R and T faces where they cover the channel, else the model's half-space factor).
+    // make_exact_slab_profiles (exact_profile.h): pi L / M toward outside cosine cos_o of each
+    // face (the tables' R and T faces where they cover the channel, else the model's
+    // half-space factor).
     std::function<void(double cos_o, Rgb* same, Rgb* opposite)> exit;
 };
 // `scale`: per channel, multiplies R (and its total): 1 for the dipole; for another half-space
-// model (the exact profile) its total over the dipole's (Subsurface), so that R meets that
-// model's half-space at the threshold. T is not scaled (it vanishes there anyway, and the
+// model (the exact profile) its total over the dipole's (RadialProfile::slab_profiles), so
+// that R meets that model's half-space at the threshold. T is not scaled (it vanishes there anyway, and the
 // multipole's T is within a few % of transport at high albedo where the dipole's total is not).
 SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& scale = Rgb(1.0));
-
-// The slab of the exact profile (thin geometry with `profile exact`): per channel, where the
-// model's slab tables (ExactProfile::slab_tables, the library's own transport Monte Carlo of
-// slabs, faces R and T) cover the channel's thickness d sigma_t' (transport mfp), R(s) and T(rho)
-// are those faces in scene units, rd_scene(r) = st'^2 rd(r st') as ExactProfile does for the
-// half-space. R is the multiple-scattering face (single scattering is the finish's BRDF, added
-// once, as for the half-space). T has the tables' total of all orders (multi + single: light
-// scattered once on its way through leaves the opposite face too, and no BRDF renders it) in
-// the multipole's radial shape: the tables' own transmission profile is photon noise near
-// rho = 0 beyond ~4 mfp (few paths land in the small central bins: zeros and humps, e.g.
-// alpha' 0.998, d 8 mfp: Td(0) = 1e-14, Td(2 mfp') > Td(1 mfp')), while its total is within
-// 3 % of the harness Monte Carlo. Channels the tables don't cover (no tables, or d outside
-// their slab nodes): the multipole with R scaled by `scale`, as make_slab_profiles.
-// `tabulated` (optional): how many channels came from the tables.
-SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& scale,
-                                      int* tabulated = nullptr);
 
 // The thickness above which a slab's totals differ from the semi-infinite medium's by less
 // than `tolerance` of its total reflectance in every channel, (|R_total(d) - R_inf| + T_total(d)) / R_inf
 // (both shrink with d: bisection in log d): the finish renders objects at least this thick as
-// semi-infinite, exactly as before thin geometry existed. Scene units.
+// semi-infinite, exactly as without thin geometry. Scene units.
 double slab_threshold(const Dipole& dipole, double tolerance = 0.005);
 
 }  // namespace shading

@@ -13,6 +13,9 @@
 // The file format (.ssp, little-endian; specified in shading/DIPOLE.md "Profile tables") holds
 // a grid of (g, eta, d) nodes; load_profile_tables checks every field and reports
 // "NAME: offset N: <what>: expected ..., found ..." (ProfileError).
+//
+// Building the tables: ss_profile_build.cpp; the file: ss_profile_io.cpp; evaluating them
+// (ChannelProfile): ss_profile.cpp.
 #pragma once
 
 #include <array>
@@ -32,9 +35,9 @@ namespace shading {
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
 constexpr std::uint32_t kProfileGeneratorVersion = 3;
-// 3: the checksum (bytes 24..31) covers the whole file, header included (2 covered the payload
-// only: a changed header field went unnoticed, issue 29). Older files are refused; `sstool build
-// --if-stale` (make brdf-data) rebuilds them.
+// The .ssp layout's version (3: the checksum at bytes 24..31 covers the whole file, header
+// included; DIPOLE.md 10.4). Files of another version are refused; `sstool build --if-stale`
+// (make brdf-data) rebuilds them.
 constexpr std::uint32_t kProfileFormatVersion = 3;
 
 class ProfileError : public std::runtime_error {

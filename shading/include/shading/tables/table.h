@@ -1,45 +1,28 @@
-// Tabulated BRDFs: an immutable float32 grid that implements Brdf, the tools that
-// build one (from a model, a simulated measurement, another table), the `.brdf` file
-// format (brdf_data/README.md is its specification).
-//
-// Grid and angles (all tables):
-//  * theta axes (theta_i, theta_r) have n nodes on [0, 90] deg, step 90/(n-1); the last
-//    node is exactly 90 deg (grazing). Lookups clamp theta to [0, 90].
-//  * Isotropic layout: axes (theta_i, theta_r, phi), phi = phi_r - phi_i with n nodes on
-//    [0, 180] deg, step 180/(n-1). An isotropic BRDF is even in phi, so any phi is
-//    folded first: phi -> |phi| mod 360, then phi in (180, 360) -> 360 - phi.
-//    phi = 180 is the plane of incidence on the mirror side (the specular peak).
-//  * Anisotropic layout: axes (theta_i, phi_i, theta_r, phi_r), absolute azimuths from
-//    the tangent (+x), n nodes on [0, 360) deg, step 360/n, periodic.
-//  * Half/difference layout (narrow lobes, MERL's own grid): axes (theta_h, theta_d,
-//    phi_d), Rusinkiewicz's angles of the pair (merl.h: to_half_diff). Nodes sit at the
-//    centres of MERL's bins: theta_h_i = ((i + 1/2) / n0)^2 * 90 deg (dense near the half
-//    vector), theta_d_j = (j + 1/2) * 90 / n1 deg, phi_d_k = (k + 1/2) * 180 / n2 deg,
-//    phi_d periodic with period 180 deg (reciprocity: swapping wi and wo adds 180 deg, so
-//    every lookup is reciprocal by construction). Interpolation is trilinear in
-//    (sqrt(theta_h), theta_d, phi_d); between theta = 0 and the first theta_h / theta_d node
-//    it runs towards a virtual pole node holding the row's mean over phi_d (phi_d is
-//    undefined at theta_h = 0 and at theta_d = 0), so lookups are continuous there while
-//    the stored values stay those of the file. Beyond the last node values are held.
-//    Cells whose node pair has a direction below the horizon ("outside" cells) are never
-//    looked up alone; they are filled by the no-data rule so corners next to the horizon
-//    interpolate towards their neighbours. The layout is never reciprocity-folded.
-//    Nearest lookups read the node of MERL's reference bin (merl.h), so a converted MERL
-//    file looked up with Interp::Nearest gives MerlBrdf::f exactly.
-//  * Storage order is row-major over the axes above with the channel index fastest.
-//  * Reciprocity-folded isotropic tables (geometry.folded) store only theta_i <= theta_r:
-//    the (theta_i, theta_r) pairs i <= r in row-major order (numpy.triu_indices order);
-//    a lookup of (i, r) with i > r reads (r, i). Folding a grid averages f(i,r) and f(r,i).
-//  * The pole: at theta = 0 the azimuth is undefined, so every table stores one value per
-//    pole row: BrdfTable's constructor replaces each theta_i = 0 row (and theta_r = 0 row)
-//    by its mean over the undefined azimuth. Lookups at the pole therefore cannot depend
-//    on phi, whatever azimuth the caller's frame produced.
+// Tabulated BRDFs: an immutable float32 grid that implements Brdf (lookups: table.cpp,
+// table_halfdiff.cpp; sampling: table_sampler.h), the tools that build one (from a model, a
+// simulated measurement, another table: table_build.cpp) and the `.brdf` file (table_io.cpp).
+// brdf_data/README.md specifies the grids, their nodes, folding, the poles and the
+// interpolation; in short:
+//  * theta axes have n nodes on [0, 90] deg, the last exactly at grazing; lookups clamp theta.
+//  * Isotropic: (theta_i, theta_r, phi = phi_r - phi_i), phi on [0, 180] (an isotropic BRDF
+//    is even in phi: any phi is folded into that range; 180 is the mirror side).
+//  * Anisotropic: (theta_i, phi_i, theta_r, phi_r), azimuths from the tangent, periodic.
+//  * Half/difference (narrow lobes, MERL's own grid): (theta_h, theta_d, phi_d) at the centres
+//    of MERL's bins, trilinear in (sqrt(theta_h), theta_d, phi_d) with virtual pole nodes
+//    (the row means) below the first theta_h and theta_d nodes; reciprocal by construction
+//    (phi_d has period 180 deg), never folded. Nearest reads MERL's own bin, so a converted
+//    MERL file gives MerlBrdf::f exactly.
+//  * Storage: row-major over the axes, channel fastest; a folded isotropic table stores the
+//    pairs theta_i <= theta_r only (a lookup of i > r reads (r, i)).
+//  * The pole: BrdfTable's constructor replaces each theta = 0 row by its mean over the
+//    undefined azimuth, so a lookup there never depends on the caller's frame.
 //
 // f(wo, wi) excludes cos(theta_i) like every Brdf (see vec.h). Tables are immutable after
 // construction: lookups are const, lock-free and safe from any number of threads.
 #pragma once
 
 #include <atomic>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -110,6 +93,9 @@ public:
 };
 [[noreturn]] void throw_table_error(const std::string& name, uint64_t offset, const std::string& expected,
                                     const std::string& found);
+
+// A value a table may hold: finite and >= 0 (NaN and negative cells of a grid are "no data").
+inline bool valid_table_value(float v) { return std::isfinite(v) && v >= 0.0f; }
 
 enum class TableLayout : uint32_t { Isotropic = 1, Anisotropic = 2, HalfDiff = 3 };
 // Linear = trilinear (isotropic) / quadrilinear (anisotropic) in the angles, phi periodic
@@ -284,7 +270,7 @@ public:
     // computed at construction on a ~1 deg midpoint grid of the (interpolated) table with
     // exact cos*sin weights per theta_r band (so a constant table integrates exactly), summed
     // as per-node weights times the stored values (the same integral, a node's work instead of
-    // a cell's: a 1 deg RGB table's albedo takes ~20 ms instead of ~0.3 s).
+    // a cell's).
     // One entry per theta_i node; anisotropic tables: mean over the phi_i nodes. Half/
     // difference tables have no theta_i axis: entries every 2 deg (albedo_node_deg), each
     // integrated over the half vector (dw_o = 4 cos(theta_d) dw_h) on the table's own
@@ -338,7 +324,11 @@ private:
     float pole_hd_[3] = {0, 0, 0};
     std::vector<uint64_t> fold_row_;  // folded tables: offset of pair (a, a) minus a rows, per a
     mutable std::once_flag sampler_once_;
-    mutable std::unique_ptr<const TableSampler> sampler_;
+    // The sampler is built and deleted by table_sampler.cpp: the lookups need nothing of it.
+    struct SamplerDeleter {
+        void operator()(const TableSampler* s) const;
+    };
+    mutable std::unique_ptr<const TableSampler, SamplerDeleter> sampler_;
     mutable std::atomic<const TableSampler*> sampler_ready_{nullptr};
 };
 
@@ -432,12 +422,11 @@ constexpr size_t kTableFixedHeader = 112;
 constexpr uint32_t kFlagFolded = 1u << 0;
 constexpr uint32_t kFlagNoDataFilled = 1u << 1;
 constexpr uint32_t kUnitsPerSr = 1;
-// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md). A sharp lobe at normal
-// incidence peaks near 1e4 (Beckmann m = 0.001: 8e4), but a conductor's 1/(4 cos_i cos_o) near
-// grazing goes further (a half/difference table of Beckmann m = 0.02 holds 2.6e6 at
-// theta_d = 89.6 deg); a value above 1e10 is a unit or scaling error, or damage. The bound keeps every
-// product the renderer forms (pi f cos, the finish's scale <= 1e6, the light's colour, sums over
-// lights and albedo integrals) far inside float range: 1e38 in a table rendered inf pixels.
+// Largest BRDF value a .brdf file may hold, 1/sr (brdf_data/README.md says why 1e10): far above
+// any sharp lobe, a conductor's 1/(4 cos_i cos_o) near grazing included, and low enough that
+// every product the renderer forms (pi f cos, the finish's scale <= 1e6, the light's colour,
+// sums over lights and albedo integrals) stays far inside float range. Above it: a unit or
+// scaling error, or damage.
 constexpr double kMaxTableValue = 1e10;
 
 struct TableHeader {

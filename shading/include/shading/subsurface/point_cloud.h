@@ -1,0 +1,182 @@
+// Surface samples of an object and the octree over them that integrates a radial profile
+// (rd_profile.h) against their transmitted irradiance: the far field of a lookup, in the
+// spirit of Jensen & Buhler 2002 (shading/DIPOLE.md 6).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <vector>
+
+#include "shading/core/vec.h"
+#include "shading/subsurface/rd_profile.h"
+
+namespace shading {
+
+class SurfaceSampler;  // subsurface_sampling.h
+// Runs task(i, sampler) for i in [0, n), possibly from several threads, each with its own
+// sampler; returns when all are done (rethrowing the first exception).
+using ParallelFor =
+    std::function<void(std::size_t n, const std::function<void(std::size_t, SurfaceSampler&)>& task)>;
+
+// One surface sample: position and outward unit normal (scene units), the area it stands for,
+// the irradiance transmitted into the medium there (POV units: subsurface.h), and the spacing
+// of the sample lines that found it (its refinement level).
+struct SurfacePoint {
+    Vec3 p, n;
+    double area = 0;
+    Rgb irradiance;
+    double spacing = 0;  // 0: the cloud's spacing (PointCloud(points, spacing, near))
+    // Distance along -n to the object's next surface crossing (SurfaceSampler::thickness;
+    // infinity: none, or not asked for).
+    double thickness = std::numeric_limits<double>::infinity();
+};
+
+struct CloudStats {
+    std::size_t points = 0, nodes = 0, levels = 1;
+    double total_area = 0, finest_spacing = 0;
+};
+
+// An octree over surface points with per-node aggregates (area, transmitted flux A E_t, and
+// the flux-weighted centre and covariance) for the hierarchical sum, and the near/far split
+// that lookups at a point use.
+class PointCloud {
+public:
+    // Near reflectance of a spacing h (RdProfile::near_reflectance).
+    using NearFn = std::function<Rgb(double h)>;
+    // Points of possibly different spacings (SurfacePoint::spacing > 0). Each point gets a
+    // lookup spacing H >= its own: the smallest H such that no point within 3H of its leaf's
+    // box has a spacing above H (then the window's ramp [H, 3H] is sampled at least as finely
+    // as H); found in parallel through `parallel` if given.
+    PointCloud(std::vector<SurfacePoint> points, const NearFn& near, const ParallelFor* parallel = nullptr);
+    // Every point at one spacing h (SurfacePoint::spacing ignored), near = near_reflectance(h).
+    PointCloud(std::vector<SurfacePoint> points, double spacing, const Rgb& near = Rgb(0.0));
+
+    // Coarsest spacing (the base sampling).
+    double spacing() const { return levels_.empty() ? spacing_ : levels_.front().h; }
+    // The split a lookup at x uses: the lookup spacing of the point nearest to x.
+    int lookup_level(const Vec3& x) const;
+    double level_spacing(int level) const { return levels_[level].h; }
+    const Rgb& level_near(int level) const { return levels_[level].near; }
+    // Near reflectance of the base spacing (one-level clouds).
+    const Rgb& near_reflectance() const { return levels_.front().near; }
+    // The smallest SurfacePoint::thickness (infinity: none known).
+    double thinnest() const { return thinnest_; }
+
+    // The far part of M(x): sum over points of w(r) Rd(r) A E_t per channel (window of
+    // radius r0 = 2h, ramp [r0 - h, r0 + h]), with a node's aggregate used in place of its
+    // points when the node lies wholly beyond the ramp and its size seen from x is below
+    // `max_angle` (node diagonal / distance to its centre), and nodes farther than `cutoff`
+    // (scene units) from x skipped. An aggregate is the node's flux times Rd at its centre
+    // plus the second-order term of Rd's Taylor expansion about the centre, (1/2) tr(H Sigma)
+    // with Sigma the node's covariance: the error falls from O(angle^2) to O(angle^4).
+    // `visited` (optional) counts nodes opened.
+    Rgb far_exitance(const RdProfile& rd, const Vec3& x, double r0, double h, double max_angle, double cutoff,
+                     std::size_t* visited = nullptr) const;
+    // The same sum over every point with the profile's exact callable, no aggregation and no
+    // cutoff: the reference.
+    Rgb far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h) const;
+    // Thin geometry (shading/DIPOLE.md section 6a): M(x) at a point of unit normal nx and
+    // thickness d, less the same face's near field: the points whose normal faces the same way
+    // as nx (dot > 0) integrated with `same` (of the 3-D distance) and the window, as
+    // far_exitance does; the points of the opposite face (dot <= 0) with `transmit`, T of the
+    // lateral distance rho = sqrt(s^2 - min(|v.nx|, d)^2) (v = x - p, s = |v|: on a flat slab's
+    // far face sqrt(s^2 - d^2)), with the window in rho, their part inside it as near_opposite
+    // (the integral of (1 - w) T) times the (1 - w)-weighted mean of their E_t. Nodes are
+    // aggregated per side: by their normal cone (or, for a one-sheeted node crossing the
+    // plane of nx, its axis); a node holding both faces of a sheet is opened. `opposite`
+    // (optional): the opposite face's part of the result.
+    Rgb far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx, double d,
+                           double r0, double h, double max_angle, const Rgb& near_opposite,
+                           std::size_t* visited = nullptr, Rgb* opposite = nullptr) const;
+    // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
+    Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
+                                 double d, double r0, double h, const Rgb& near_opposite) const;
+
+    // The near/far window (rd_profile.h far_window).
+    static double window(double r, double r0, double h) { return far_window(r, r0, h); }
+
+    const std::vector<SurfacePoint>& points() const { return points_; }
+    CloudStats stats() const;
+
+private:
+    // The traversal reads only Node (48 bytes: bounds rounded outwards to float, squared
+    // diagonal, links); an aggregate's data (Agg) and a leaf's points (Leaf: position and flux
+    // A E_t) are read only when used.
+    struct Node {
+        float lo[3], hi[3];
+        float diag2;               // squared diagonal of the bounds
+        std::int32_t child = -1;   // first of `children` consecutive nodes; -1: a leaf
+        std::int32_t first = 0, count = 0;  // points [first, first + count) (in point order)
+        std::int16_t children = 0;
+        std::int8_t uniform = 0;   // lookup level shared by all its points, -1: mixed
+        std::uint8_t lit = 0;      // any flux at all
+        std::uint8_t octant = 0;   // which octant of its parent's split it holds (bit 0: x, 1: y, 2: z above)
+    };
+    struct Agg {
+        Vec3 centre;         // flux-weighted (area-weighted if no flux) centre
+        double cov[6];       // the flux-weighted covariance: xx yy zz xy xz yz
+        Rgb flux;            // sum of A E_t
+    };
+    struct Aux {             // for lookup levels
+        Vec3 split;          // centre of the node's bounds (its octants' common corner)
+        double max_spacing;
+    };
+    struct Cone {            // the node's normals: all within `angle` (radians) of `axis`
+        float axis[3];
+        float angle;
+    };
+    struct Merge {           // while building: the weights of the centres (flux over channels, area)
+        double wsum, area;
+        Vec3 area_centre;
+        Vec3 nsum;           // area-weighted normal sum
+    };
+    struct Leaf {
+        Vec3 p;
+        Rgb flux;            // A E_t
+    };
+    struct Level {
+        double h;
+        Rgb near;
+    };
+    struct Tree;
+    void build_tree(const ParallelFor* parallel);
+    void build(Tree& t, int index, int first, int count, int depth);
+    int split(Tree& t, int index, int first, int count, int depth, int ranges[8][3]);
+    void aggregate(Tree& t, int index, int first, int count, int n);
+    void finish();
+    // Deepest octree level: a traversal's stack holds at most 8 nodes per level.
+    static constexpr int kMaxDepth = 48;
+    // Squared distance from x to a box (0 inside).
+    static double box_distance2(const Vec3& x, const float* lo, const float* hi) {
+        const double dx = x.x < lo[0] ? lo[0] - x.x : (x.x > hi[0] ? x.x - hi[0] : 0.0);
+        const double dy = x.y < lo[1] ? lo[1] - x.y : (x.y > hi[1] ? x.y - hi[1] : 0.0);
+        const double dz = x.z < lo[2] ? lo[2] - x.z : (x.z > hi[2] ? x.z - hi[2] : 0.0);
+        return dx * dx + dy * dy + dz * dz;
+    }
+    double max_spacing_within(int start, const float* lo, const float* hi, double radius, double above) const;
+    int nearest(const Vec3& x) const;
+    // far_exitance (kSided false: every point on x's side, `transmit` unused) and
+    // far_exitance_sided (true) in one traversal; cut_same2: the squared cutoff of `same`.
+    template <bool kSided>
+    Rgb far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,
+                double h, double max_angle, double cut_same2, const Rgb& near_opposite, std::size_t* visited,
+                Rgb* opposite) const;
+    // far_exitance_exact and far_exitance_sided_exact.
+    template <bool kSided>
+    Rgb exact_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,
+                  double h, const Rgb& near_opposite) const;
+    double spacing_ = 0;
+    std::vector<SurfacePoint> points_;
+    std::vector<Leaf> leaves_;            // points_ in the same order, as the far sum reads them
+    std::vector<std::uint8_t> level_of_;  // per point: index into levels_ (empty: all 0)
+    std::vector<Level> levels_;           // coarsest first
+    std::vector<Node> nodes_;
+    std::vector<Agg> aggs_;
+    std::vector<Aux> aux_;
+    std::vector<Cone> cones_;             // read only by far_exitance_sided
+    double thinnest_ = std::numeric_limits<double>::infinity();
+};
+
+}  // namespace shading

@@ -1,0 +1,248 @@
+// ExactProfile: the tables evaluated per channel in scene units, and its slabs; see
+// exact_profile.h.
+#include "shading/subsurface/exact_profile.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "shading/core/format.h"
+#include "shading/subsurface/rd_profile.h"
+
+namespace shading {
+
+using detail::fmt;
+
+namespace {
+
+// Throws std::invalid_argument (named for the file) when the tables were made by another
+// generator version than this library's (their values would differ from what the library
+// builds; a file's generator is inside its checksum), or are slab tables given as the
+// semi-infinite ones.
+void check_identity(const ProfileTables& t, bool slabs) {
+    const std::string name = t.name.empty() ? std::string(slabs ? "slab tables" : "profile tables") : t.name;
+    if (t.generator_version != kProfileGeneratorVersion)
+        throw std::invalid_argument(name + ": built by profile generator " + std::to_string(t.generator_version) +
+                                    ", this renderer reads generator " + std::to_string(kProfileGeneratorVersion) +
+                                    "'s: rebuild it (make brdf-data, or sstool build --if-stale -o FILE)");
+    if (!slabs && t.faces != 1)
+        throw std::invalid_argument(name + ": expected semi-infinite tables (one face), found slab tables "
+                                    "(subsurface_slabs.ssp is the slab file; make brdf-data builds both)");
+}
+
+}  // namespace
+
+ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
+                           std::shared_ptr<const ProfileTables> slab_tables)
+    : tables_(std::move(tables)), slab_tables_(std::move(slab_tables)) {
+    const std::string bad = m.validate();
+    if (!bad.empty()) throw std::invalid_argument("dipole medium: " + bad);
+    if (!tables_) throw std::invalid_argument("exact profile: no tables");
+    // Tables another generator made, or of another kind than asked for, are never used.
+    check_identity(*tables_, false);
+    if (slab_tables_) check_identity(*slab_tables_, true);
+    eta_ = m.eta;
+    const ProfileBuildSettings& s = tables_->settings;
+    const std::string range = ChannelProfile::range_error(*tables_, s.g.front(), m.eta, std::numeric_limits<double>::infinity());
+    if (!range.empty()) throw std::invalid_argument("exact profile: " + range + "; use `profile dipole` for this medium");
+    const Rgb ssp = m.sigma_s_prime();
+    static const char* names[3] = {"r", "g", "b"};
+    std::vector<std::pair<double, std::string>> clamped;  // g value, its channels
+    for (int c = 0; c < 3; ++c) {
+        const double sp = ssp[c], sa = m.sigma_a[c];
+        const double st = sp + sa;
+        if (!(st > 0) || !(sp > 0)) continue;  // no scattering: nothing diffuses
+        double g = m.g[c];
+        g_[c] = g;
+        const double gc = std::clamp(g, s.g.front(), s.g.back());
+        if (gc != g) {
+            auto it = std::find_if(clamped.begin(), clamped.end(), [&](const auto& p) { return p.first == g; });
+            if (it == clamped.end()) clamped.push_back({g, names[c]});
+            else it->second += std::string(", ") + names[c];
+        }
+        ch_[c] = std::make_unique<ChannelProfile>(*tables_, sp / st, gc, m.eta);
+        st_[c] = st * m.mm_per_unit;
+        // all but 1e-6 of the channel; without absorption a power-law tail, capped at 1e6 mfp'
+        const double r = std::min(ch_[c]->radius_containing(1.0 - 1e-6), 1e6);
+        cutoff_ = std::max(cutoff_, r / st_[c]);
+    }
+    // Slab tables: every scattering channel's (g, eta) inside them (thickness: per node, slab.h).
+    if (!slab_tables_) {
+        slab_gap_ = "no slab tables";
+    } else if (slab_tables_->faces < 2) {
+        slab_gap_ = "the slab tables have no transmission face";
+    } else {
+        for (int c = 0; c < 3 && slab_gap_.empty(); ++c)
+            if (ch_[c]) slab_gap_ = ChannelProfile::range_error(*slab_tables_, g_[c], m.eta, 1.0);
+    }
+    for (const auto& [g, channels] : clamped) {
+        const double gc = std::clamp(g, s.g.front(), s.g.back());
+        notes_.push_back("g = " + fmt(g) + " (" + channels + ") is outside the exact profile's tables [" + fmt(s.g.front()) +
+                         ", " + fmt(s.g.back()) + "]: the g = " + fmt(gc) + " table is used at the same reduced albedo");
+    }
+}
+
+Rgb ExactProfile::rd(double r) const {
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = st_[c] * st_[c] * ch_[c]->rd(r * st_[c]);
+    return v;
+}
+
+Rgb ExactProfile::rd_disc(double R) const {
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = ch_[c]->disc(R * st_[c]);
+    return v;
+}
+
+Rgb ExactProfile::total() const {
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = ch_[c]->total();
+    return v;
+}
+
+double ExactProfile::mean_free_path() const {
+    double l = 0;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) l = l == 0 ? 1.0 / st_[c] : std::min(l, 1.0 / st_[c]);
+    return l;
+}
+
+Rgb ExactProfile::exit_factor(double cos_o) const {
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = ch_[c]->exit_factor(cos_o);
+    return v;
+}
+
+Rgb ExactProfile::entry_factor(double cos_i) const {
+    const double ft = fresnel_transmittance(std::clamp(cos_i, 0.0, 1.0), eta_);
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = ft * ch_[c]->entry_factor(cos_i);
+    return v;
+}
+
+SlabProfiles ExactProfile::slab_profiles(const Dipole& dipole, double d) const {
+    // With slab tables covering (g, eta): its own slabs (DIPOLE.md 6a), the multipole where a
+    // channel's thickness lies outside the tables' nodes.
+    return make_exact_slab_profiles(*this, dipole, d, multipole_scale(dipole));
+}
+
+std::string ExactProfile::slab_note() const {
+    if (slab_tables()) return "";
+    return "Dipole: thin objects with profile exact use the multipole, scaled to the\n"
+           "  exact total; slab tables subsurface_slabs.ssp:\n  " + slab_gap();
+}
+
+// ---------------------------------------------------------------- slabs
+
+SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& k,
+                                      int* tabulated) {
+    if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("make_exact_slab_profiles: thickness must be finite and > 0");
+    const ProfileTables* tables = model.slab_tables();
+    if (tabulated) *tabulated = 0;
+    if (!tables) return make_slab_profiles(dipole, d, k);
+    // Per channel: the tables' faces (shared: the profiles' functions outlive this call), or
+    // the multipole.
+    struct Channel {
+        std::shared_ptr<const ChannelProfile> r, t;
+        double st = 0, t_scale = 1;
+        SlabChannel multipole;
+    };
+    auto ch = std::make_shared<std::array<Channel, 3>>();
+    SlabProfiles out;
+    out.d = d;
+    double scale = kInf, cutoff = 0;
+    int from_tables = 0, scattering = 0;
+    for (int c = 0; c < 3; ++c) {
+        Channel& x = (*ch)[c];
+        const ChannelProfile* half = model.channel(c);
+        if (!half) continue;  // does not scatter: nothing diffuses
+        ++scattering;
+        const double st = model.sigma_t_prime(c);
+        try {
+            x.r = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 0);
+            x.t = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 1);
+        } catch (const std::invalid_argument&) {  // d outside the tables' slab nodes
+            x.r.reset();
+            x.t.reset();
+        }
+        if (x.r) {
+            ++from_tables;
+            x.st = st;
+            // T: the tables' total of all orders in the multipole's radial shape (the tables'
+            // transmission profile is photon noise near rho = 0 beyond a few mfp: slab.h).
+            x.multipole = SlabChannel::make(dipole.channel(c), d);
+            const double t_all = x.t->total() + x.t->single(), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
+            x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
+            out.R_total[c] = x.r->total();
+            out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;
+            if (x.r->total() > 0) cutoff = std::max(cutoff, std::min(x.r->radius_containing(1.0 - 1e-6), 1e6) / st);
+            cutoff = std::max(cutoff, std::max(x.multipole.cutoff, 1.0 / st));
+            scale = std::min(scale, std::min(1.0 / st, x.multipole.empty ? d : x.multipole.z0));
+        } else {
+            x.multipole = SlabChannel::make(dipole.channel(c), d);
+            if (x.multipole.empty) continue;
+            out.R_total[c] = k[c] * x.multipole.R_total();
+            out.T_total[c] = x.multipole.T_total();
+            scale = std::min(scale, x.multipole.z0);
+            cutoff = std::max(cutoff, x.multipole.cutoff);
+        }
+    }
+    if (tabulated) *tabulated = from_tables;
+    if (!(cutoff > 0)) scale = cutoff = d;  // every channel empty
+    scale = std::min(scale, cutoff);
+    auto same = [ch, k](double r) {
+        Rgb v;
+        for (int c = 0; c < 3; ++c) {
+            const Channel& x = (*ch)[c];
+            v[c] = x.r ? x.st * x.st * x.r->rd(r * x.st) : x.multipole.empty ? 0.0 : k[c] * x.multipole.R(r);
+        }
+        return v;
+    };
+    auto transmit = [ch](double rho) {
+        Rgb v;
+        for (int c = 0; c < 3; ++c) {
+            const Channel& x = (*ch)[c];
+            v[c] = x.multipole.empty ? 0.0 : (x.t ? x.t_scale : 1.0) * x.multipole.T(rho);
+        }
+        return v;
+    };
+    // R with every channel from the tables: their disc integrals; otherwise numerically (as the
+    // multipole), and T always so.
+    RdProfile::Fn same_disc;
+    if (from_tables == scattering && scattering > 0) {
+        same_disc = [ch](double R) {
+            Rgb v;
+            for (int c = 0; c < 3; ++c)
+                if ((*ch)[c].r) v[c] = (*ch)[c].r->disc(R * (*ch)[c].st);
+            return v;
+        };
+    }
+    out.same = std::make_shared<const RdProfile>(same, same_disc, scale, cutoff);
+    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
+    // Each face's own exit distribution where the tables hold it (the transmitted light of a
+    // thin slab leaves more obliquely: pi L / M at normal 0.85 at 0.25 mfp against the
+    // half-space's 1.02; the harness Monte Carlo's transmitted radiance agrees, DIPOLE.md 6a).
+    if (from_tables > 0) {
+        const ExactProfile* half = &model;  // outlives the slab (Subsurface holds both)
+        out.exit = [ch, half](double cos_o, Rgb* same_exit, Rgb* opposite_exit) {
+            const Rgb h = half->exit_factor(cos_o);
+            *same_exit = h;
+            *opposite_exit = h;
+            for (int c = 0; c < 3; ++c)
+                if ((*ch)[c].r) {
+                    (*same_exit)[c] = (*ch)[c].r->exit_factor(cos_o);
+                    (*opposite_exit)[c] = (*ch)[c].t->exit_factor(cos_o);
+                }
+        };
+    }
+    return out;
+}
+
+}  // namespace shading

@@ -1,0 +1,243 @@
+// The far field of a lookup: the octree's sum of Rd(r) A E_t over the samples, aggregated
+// where a node is small as seen from x (point_cloud.h far_exitance, far_exitance_sided), and
+// the exact sums the tests hold it against.
+#include "shading/subsurface/point_cloud.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace shading {
+
+namespace {
+
+// The profile averaged over an aggregate's points, to second order: f(|x - p|) ~ f(d) +
+// (1/2) tr(H Sigma), H the Hessian in p: f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d (f', f''
+// tabulated with f), Sigma the points' covariance `cov` (xx yy zz xy xz yz); v = c - x, dc2 =
+// |v|^2. Times the aggregate's flux, never below 0 (the expansion can undershoot where Rd ~ 0).
+Rgb aggregate_exitance(const RdProfile& rd, const double* C, const Rgb& flux, const Vec3& v, double dc2) {
+    const double dc = std::sqrt(dc2), inv = 1.0 / dc;
+    const Vec3 u = v * inv;
+    const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
+                       u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
+                       u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
+    const double a = 0.5 * uCu, b = 0.5 * (C[0] + C[1] + C[2] - uCu) * inv;
+    Rgb f0, f1, f2;
+    rd.eval(dc, &f0, &f1, &f2);
+    Rgb out;
+    out.r = std::max(0.0, f0.r + a * f2.r + b * f1.r) * flux.r;
+    out.g = std::max(0.0, f0.g + a * f2.g + b * f1.g) * flux.g;
+    out.b = std::max(0.0, f0.b + a * f2.b + b * f1.b) * flux.b;
+    return out;
+}
+
+}  // namespace
+
+Rgb PointCloud::far_exitance(const RdProfile& rd, const Vec3& x, double r0, double h, double max_angle,
+                             double cutoff, std::size_t* visited) const {
+    return far_sum<false>(rd, nullptr, x, Vec3(), 0.0, r0, h, max_angle, cutoff * cutoff, Rgb(0.0), visited, nullptr);
+}
+
+Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
+                                   double d, double r0, double h, double max_angle, const Rgb& near_opposite,
+                                   std::size_t* visited, Rgb* opposite) const {
+    return far_sum<true>(same, &transmit, x, nx, d, r0, h, max_angle, sqr(same.r_max()), near_opposite, visited,
+                         opposite);
+}
+
+Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h) const {
+    return exact_sum<false>(rd, nullptr, x, Vec3(), 0.0, r0, h, Rgb(0.0));
+}
+
+Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x,
+                                         const Vec3& nx, double d, double r0, double h, const Rgb& near_opposite) const {
+    return exact_sum<true>(same, &transmit, x, nx, d, r0, h, near_opposite);
+}
+
+template <bool kSided>
+Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d,
+                        double r0, double h, double max_angle, double cut_same2, const Rgb& near_opposite,
+                        std::size_t* visited, Rgb* opposite) const {
+    Rgb sum, opp_sum;  // the opposite face's part of sum (added to both: sum's order as before)
+    if (opposite) *opposite = Rgb(0.0);
+    if (nodes_.empty()) return sum;
+    const double inner2 = sqr(std::max(0.0, r0 - h)), outer = r0 + h, outer2 = outer * outer;
+    const double d2 = d * d, cut_t = kSided ? transmit->r_max() : 0.0;
+    // rho >= sqrt(s^2 - d^2): nothing of T beyond s^2 = r_max^2 + d^2
+    const double cut_opp2 = cut_t * cut_t + d2;
+    const double cut2 = kSided ? std::max(cut_same2, cut_opp2) : cut_same2;
+    const double angle2 = max_angle * max_angle;
+    // widened angles (RdProfile::angle_gain2) stay below 1: the expansion's limit
+    const double gain_cap = std::max(1.0, 1.0 / angle2);
+    constexpr double kHalfPi = 0.5 * kPi;
+    // The lateral distance of p from x for the transmission profile: rho^2 = s^2 - min(v.nx, d)^2
+    // (v = x - p): a flat slab's sqrt(s^2 - d^2) on its opposite face, the distance across
+    // x's normal line where the far side is closer than d (a curved object), and never below
+    // the lateral distance, which moves by at most |p - q| between points p, q.
+    auto rho_of = [&](const Vec3& p) {
+        const Vec3 v = x - p;
+        const double vn = std::min(std::fabs(dot(v, nx)), d);
+        return std::sqrt(std::max(0.0, dot(v, v) - vn * vn));
+    };
+    // The opposite face's near field: inside the window (in rho) its points only give their
+    // irradiance to a (1 - w)-weighted mean, which lights the part of T inside the window
+    // (near_opposite, integrated, not sampled: T's peak is as narrow as the slab and would
+    // fall between samples).
+    double near_area = 0;
+    Rgb near_flux;
+    std::size_t opened = 0;
+    // Stack entries: node, side (0: not known yet, 1: every normal on nx's side, 2: every
+    // normal on the other side; a side, once known, holds for the subtree). Without sides
+    // every node is on x's side.
+    int stack[8 * kMaxDepth + 16];
+    std::uint8_t sides[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top] = 0;
+    sides[top++] = kSided ? 0 : 1;
+    auto add_point = [&](int i, bool opp) {
+        const Leaf& s = leaves_[i];
+        const Vec3 v = x - s.p;
+        const double r2 = dot(v, v);
+        if (opp) {
+            if (r2 > cut_opp2) return;
+            const double rho = rho_of(s.p);
+            double w = 1.0;
+            if (rho < outer) {
+                w = rho * rho <= inner2 ? 0.0 : window(rho, r0, h);
+                near_area += (1.0 - w) * points_[i].area;
+                near_flux += s.flux * (1.0 - w);
+            }
+            if (w > 0) {
+                const Rgb t = transmit->rd(rho) * s.flux * w;
+                sum += t;
+                opp_sum += t;
+            }
+            return;
+        }
+        // w = 0 inside the ramp's start: no square root, no profile
+        if (r2 <= inner2 || r2 > cut_same2) return;
+        const double r = std::sqrt(r2);
+        const double w = r2 >= outer2 ? 1.0 : window(r, r0, h);
+        sum += same.rd(r) * s.flux * w;
+    };
+    while (top > 0) {
+        --top;
+        const int k = stack[top];
+        int side = kSided ? sides[top] : 1;
+        const Node& nd = nodes_[k];
+        ++opened;
+        // Unlit nodes (shadowed, facing away from every light) bring nothing.
+        if (!nd.lit) continue;
+        const double dbox2 = box_distance2(x, nd.lo, nd.hi);
+        if (dbox2 > cut2) continue;
+        // The side an aggregate of this node takes: `side` where known; else, for a node of
+        // one sheet (its normals within 90 degrees of its axis: a curved surface crossing the
+        // plane of nx, e.g. the rim of a sphere seen from x), its axis's side (its points on
+        // the other side are few, at the seam of the two profiles); a node whose normals
+        // spread wider (both faces of a sheet) has none and is opened.
+        int agg_side = side;
+        if (kSided && side == 0) {
+            // The cone's axis at angle phi from nx, half-angle c: every normal has dot > 0 with
+            // nx when phi + c < pi/2, dot < 0 when phi - c > pi/2.
+            const Cone& cc = cones_[k];
+            const double phi = std::acos(std::max(-1.0, std::min(1.0, cc.axis[0] * nx.x + cc.axis[1] * nx.y + cc.axis[2] * nx.z)));
+            if (phi + cc.angle < kHalfPi) side = 1;
+            else if (phi - cc.angle > kHalfPi) side = 2;
+            agg_side = side != 0 ? side : (cc.angle < kHalfPi ? (phi < kHalfPi ? 1 : 2) : 0);
+        }
+        if (kSided && side == 1 && dbox2 > cut_same2) continue;
+        if (kSided && side == 2 && dbox2 > cut_opp2) continue;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const bool opp = kSided && (side == 2 || (side == 0 && !(dot(points_[i].n, nx) > 0)));
+                add_point(i, opp);
+            }
+            continue;
+        }
+        if (agg_side == 1 && dbox2 > outer2) {
+            // Aggregate only nodes wholly beyond the window's ramp (w = 1 for all their points):
+            // Rd at the centre plus (1/2) tr(H Sigma).
+            const Agg& g = aggs_[k];
+            const Vec3 v = g.centre - x;
+            const double dc2 = dot(v, v);
+            if (double(nd.diag2) < angle2 * std::min(same.angle_gain2(dc2), gain_cap) * dc2) {
+                const Rgb e = aggregate_exitance(same, g.cov, g.flux, v, dc2);
+                sum.r += e.r;
+                sum.g += e.g;
+                sum.b += e.b;
+                continue;
+            }
+        } else if (kSided && agg_side == 2) {
+            // T at the centre's rho plus the second-order term of its expansion in the plane
+            // across nx (exact geometry for a flat slab, where rho is the in-plane distance):
+            // (1/2) tr(H Sigma_p), H = T'' u u^T + (T'/rho)(I - u u^T) in that plane, Sigma_p
+            // the covariance projected onto it, u the in-plane direction to the centre. For a
+            // node wholly beyond the window in rho (rho of any of its points >= the centre's -
+            // the diagonal) and small as seen from x.
+            const Agg& g = aggs_[k];
+            const Vec3 v = g.centre - x;
+            const double dc2 = dot(v, v), diag = std::sqrt(double(nd.diag2));
+            const double rho = rho_of(g.centre);
+            if (rho - diag > outer && double(nd.diag2) < angle2 * dc2) {
+                const Vec3 lat = v - nx * dot(v, nx);
+                const double ll = length(lat);
+                const Vec3 u = ll > 0 ? lat * (1.0 / ll) : Vec3(0, 0, 0);
+                const double* C = g.cov;
+                auto quad = [C](const Vec3& a) {
+                    return a.x * (C[0] * a.x + C[3] * a.y + C[4] * a.z) + a.y * (C[3] * a.x + C[1] * a.y + C[5] * a.z) +
+                           a.z * (C[4] * a.x + C[5] * a.y + C[2] * a.z);
+                };
+                const double uCu = quad(u), nCn = quad(nx);
+                const double a = 0.5 * uCu, b = 0.5 * std::max(0.0, C[0] + C[1] + C[2] - nCn - uCu) / rho;
+                Rgb f0, f1, f2;
+                transmit->eval(rho, &f0, &f1, &f2);
+                const Rgb t(std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r,
+                            std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g,
+                            std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b);
+                sum.r += t.r;
+                sum.g += t.g;
+                sum.b += t.b;
+                opp_sum += t;
+                continue;
+            }
+        }
+        for (int c = 0; c < nd.children; ++c) {
+            stack[top] = nd.child + c;
+            if (kSided) sides[top] = std::uint8_t(side);
+            ++top;
+        }
+    }
+    if (visited) *visited += opened;
+    if (kSided && near_area > 0) {
+        const Rgb t = near_opposite * near_flux * (1.0 / near_area);
+        sum += t;
+        opp_sum += t;
+    }
+    if (opposite) *opposite = opp_sum;
+    return sum;
+}
+
+template <bool kSided>
+Rgb PointCloud::exact_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d,
+                          double r0, double h, const Rgb& near_opposite) const {
+    Rgb sum, near_flux;
+    double near_area = 0;
+    for (const SurfacePoint& s : points_) {
+        const Vec3 v = x - s.p;
+        const double r = length(v);
+        if (!kSided || dot(s.n, nx) > 0) {
+            const double w = window(r, r0, h);
+            if (w > 0) sum += same.exact(r) * s.irradiance * (s.area * w);
+        } else {
+            const double vn = std::min(std::fabs(dot(v, nx)), d);
+            const double rho = std::sqrt(std::max(0.0, r * r - vn * vn));
+            const double w = window(rho, r0, h);
+            sum += transmit->exact(rho) * s.irradiance * (s.area * w);
+            near_area += (1.0 - w) * s.area;
+            near_flux += s.irradiance * ((1.0 - w) * s.area);
+        }
+    }
+    if (near_area > 0) sum += near_opposite * near_flux * (1.0 / near_area);
+    return sum;
+}
+
+}  // namespace shading

@@ -1,0 +1,452 @@
+// Building the exact-profile tables from the transport Monte Carlo (build_profile_tables): one
+// run per (g, thickness) node, its tallies turned into face records (process_face); see
+// ss_profile.h and shading/DIPOLE.md 10.3.
+#include "shading/subsurface/ss_profile.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "shading/subsurface/ss_profile_curve.h"
+
+namespace shading {
+
+using namespace ss_detail;
+
+namespace {
+
+// Radial node positions of the tables: 0, then the geometric centres of bins 1 .. count-1.
+std::vector<double> node_positions(const RadialBins& bins) {
+    std::vector<double> r(bins.count);
+    r[0] = 0.0;
+    for (int b = 1; b < bins.count; ++b) r[b] = std::sqrt(bins.inner(b) * bins.outer(b));
+    return r;
+}
+
+// ---------------------------------------------------------------- processing of the tallies
+
+struct Diagnostics {
+    double worst_tail_ratio = 1;  // flux-matched / fitted tail amplitude, farthest from 1
+    double worst_deconv = 0;      // largest relative mismatch of annulus means left after deconvolution
+    double worst_angle_rms = 0;   // flux-weighted rms relative residual of the high orders' angular fit
+    double worst_radiance_flux = 0;  // |exitance implied by the angular samples / the exits' total - 1|
+    int dropped_tails = 0;           // tails whose amplitude would overflow the file (noise-only faces)
+    int noisy_angles = 0;            // faces whose angular samples were normalised by their own flux
+};
+
+void process_face(const McFace& f, const McSettings& mc, int k, double g, double eta, FaceRecord& rec,
+                  Diagnostics& diag) {
+    const RadialBins& bins = mc.bins;
+    const int nb = bins.count;
+    const double alpha = mc.albedos[k];
+    rec.multi = f.multi[k];
+    rec.single = f.single[k];
+    rec.ballistic = f.ballistic[k];
+
+    // Bin means and where they stop being reliable (relative error above 5 % beyond 1 mfp').
+    std::vector<double> m(nb), se(nb);
+    for (int b = 0; b < nb; ++b) {
+        m[b] = f.radial[std::size_t(k) * nb + b];
+        se[b] = f.radial_se[std::size_t(k) * nb + b];
+    }
+    const int b_one = bins.index(1.0);
+    int b_end = nb;
+    for (int b = b_one; b < nb; ++b)
+        if (!(m[b] > 0) || se[b] > 0.05 * m[b]) {
+            b_end = b;
+            break;
+        }
+    // Below 1 mfp' a bin can be empty only for a vanishing profile: keep it positive for the logs.
+    double floor_v = kTiny;
+    for (int b = 0; b < b_end; ++b) floor_v = std::max(floor_v, m[b] * 1e-12);
+    for (int b = 0; b < b_end; ++b) m[b] = std::max(m[b], floor_v);
+
+    // Matched tail beyond rho_t: the asymptotic transport decay rate, amplitude from the flux the
+    // Monte Carlo puts beyond rho_t (so the profile integrates to the total).
+    const double k_tr = transport_decay_rate(alpha, g) / (1.0 - alpha * g);
+    const double rho_t = bins.inner(b_end < nb ? b_end : nb - 1);
+    double inside = 0;
+    for (int b = 0; b < b_end; ++b) inside += m[b] * bins.area(b);
+    const double beyond = rec.multi - inside;
+    double a_fit = 0;
+    {
+        int n = 0;
+        for (int b = std::max(1, b_end - 3); b < b_end; ++b, ++n) {
+            const double c = std::sqrt(bins.inner(b) * bins.outer(b));
+            a_fit += m[b] / tail_shape(k_tr, c);
+        }
+        a_fit = n > 0 ? a_fit / n : 0.0;
+    }
+    // Where the tail carries more than 1 % of the total (high albedo, the asymptotic regime from a
+    // few mfp' on) its amplitude conserves the flux; below that (the tail holds a negligible flux
+    // but is not yet asymptotic where the data stop) it continues the data with one of two
+    // two-parameter forms fitted to the last (up to 6) reliable bins beyond 1 mfp':
+    //   power:      Rd = A exp(-k rho) rho^-p                 (a local power law)
+    //   asymptotic: Rd = exp(-k rho) rho^-2 (c0 + c1 / rho)   (the far field's family; the dipole's
+    //                                                          (1 + k rho) exp(-k rho) / rho^3 is one)
+    // chosen by cross-validation: each fitted to all but the last two of those bins, the one that
+    // predicts those two better is refitted to all. (Either alone was 12 % off two bins beyond the
+    // data in some media: the power law where the decay steepens, the asymptotic form at low
+    // albedo without anisotropy, where the asymptotic regime starts much later.)
+    const bool flux_tail = beyond > 0.01 * rec.multi;
+    double a = 0;
+    if (k_tr * rho_t < 600) {
+        a = flux_tail ? beyond / tail_flux(k_tr, rho_t) : a_fit;
+        // A face with almost no exits (transmission through a thick slab at low albedo) can put
+        // a few noisy exits beyond a radius where the asymptotic decay is already e^-70: its
+        // flux-matched amplitude then exceeds what the file stores (kMaxTailAmplitude). Such a
+        // tail holds nothing a render can see; it is dropped and counted.
+        if (!(std::isfinite(a) && a >= 0)) a = 0;
+        if (a > kMaxTailAmplitude) {
+            a = 0;
+            ++diag.dropped_tails;
+        }
+    }
+    struct TailFit {
+        int kind = -1;  // 0 power (p0 = ln A, p1 = p), 1 asymptotic (p0 = c0, p1 = c1); -1 none
+        double p0 = 0, p1 = 0;
+        double at(double r, double k) const {
+            if (kind == 0) return std::exp(p0 - k * r - p1 * std::log(r));
+            return std::exp(-k * r) / (r * r) * (p0 + p1 / r);
+        }
+    };
+    // Weighted least squares of one form over bins [b0, b1) (weights from relative errors).
+    auto fit = [&](int kind, int b0, int b1) {
+        double A00 = 0, A01 = 0, A11 = 0, v0 = 0, v1 = 0;
+        int n = 0;
+        for (int b = b0; b < b1; ++b, ++n) {
+            const double c = std::sqrt(bins.inner(b) * bins.outer(b));
+            const double rel = se[b] > 0 ? se[b] / m[b] : 1.0;
+            double x, y, w;
+            if (kind == 0) {  // ln m + k rho = ln A - p ln rho
+                x = -std::log(c);
+                y = std::log(m[b]) + k_tr * c;
+                w = 1.0 / (rel * rel);
+            } else {  // m exp(k rho) rho^2 = c0 + c1 / rho
+                x = 1.0 / c;
+                y = m[b] * std::exp(k_tr * c) * c * c;
+                w = 1.0 / (rel * rel * y * y);
+            }
+            A00 += w;
+            A01 += w * x;
+            A11 += w * x * x;
+            v0 += w * y;
+            v1 += w * x * y;
+        }
+        TailFit f;
+        const double det = A00 * A11 - A01 * A01;
+        if (n < 2 || !(det > 0)) return f;
+        f.p0 = (v0 * A11 - v1 * A01) / det;
+        f.p1 = (A00 * v1 - A01 * v0) / det;
+        const bool ok = kind == 0 ? (std::isfinite(f.p0) && std::isfinite(f.p1) && f.p1 > 0)
+                                  : (std::isfinite(f.p0) && std::isfinite(f.p1) && f.p0 >= 0 && f.p0 + f.p1 / rho_t > 0);
+        if (ok) f.kind = kind;
+        return f;
+    };
+    TailFit tail;
+    const int first = std::max(b_one, b_end - 6);
+    if (!flux_tail && k_tr * rho_t < 600 && b_end - first >= 3) {
+        double best = std::numeric_limits<double>::infinity();
+        int choice = -1;
+        for (int kind : {0, 1}) {
+            const TailFit f = b_end - first >= 5 ? fit(kind, first, b_end - 2) : fit(kind, first, b_end);
+            if (f.kind < 0) continue;
+            double err = 0;
+            for (int b = std::max(first, b_end - 2); b < b_end; ++b) {
+                const double c = std::sqrt(bins.inner(b) * bins.outer(b));
+                err += sqr(std::log(f.at(c, k_tr) / m[b]));
+            }
+            if (err < best) {
+                best = err;
+                choice = kind;
+            }
+        }
+        if (choice >= 0) tail = fit(choice, first, b_end);
+    }
+    if (std::getenv("SSTOOL_DEBUG"))
+        std::fprintf(stderr, "  albedo %.6f: b_end %d rho_t %.3g k %.4g inside %.5g of %.5g, a flux %.4g fit %.4g, tail form %d (%.4g, %.4g)\n",
+                     alpha, b_end, rho_t, k_tr, inside, rec.multi, a, a_fit, tail.kind, tail.p0, tail.p1);
+    if (a > 0 && a_fit > 0) {
+        const double ratio = a / a_fit;
+        if (std::fabs(std::log(ratio)) > std::fabs(std::log(diag.worst_tail_ratio))) diag.worst_tail_ratio = ratio;
+    }
+    rec.tail_k = k_tr;
+    rec.tail_a = a;
+    rec.rho_tail = rho_t;
+
+    // Node values: the bin means, then corrected until the interpolant's annulus means equal them.
+    const std::vector<double> rho = node_positions(bins);
+    std::vector<double> y(nb);
+    for (int b = 0; b < nb; ++b) {
+        double v;
+        if (b < b_end) v = m[b];
+        else if (tail.kind >= 0) v = tail.at(rho[b], k_tr);
+        else v = a * tail_shape(k_tr, rho[b]);
+        y[b] = std::log(std::max(v, kTiny));
+    }
+    RadialCurve c{rho.data(), y.data(), nb, std::log(10.0) / bins.per_decade};
+    // The central disc (bin 0) keeps its mean as the value at rho = 0: it holds a negligible
+    // part of the flux and few samples, and its linear segment cannot follow the noise.
+    for (int it = 0; it < 8; ++it) {
+        double worst = 0;
+        std::vector<double> ratio(b_end, 1.0);
+        for (int b = 1; b < b_end; ++b) {
+            const double lo = bins.inner(b), hi = std::min(bins.outer(b), rho[nb - 1]);
+            const double mean = c.integral(lo, hi) / (kPi * (hi * hi - lo * lo));
+            ratio[b] = mean > 0 ? m[b] / mean : 1.0;
+            worst = std::max(worst, std::fabs(ratio[b] - 1.0));
+        }
+        if (it == 7) {
+            diag.worst_deconv = std::max(diag.worst_deconv, worst);
+            if (std::getenv("SSTOOL_DEBUG") && worst > 0.01)
+                for (int b = 1; b < b_end; ++b)
+                    if (std::fabs(ratio[b] - 1) > 0.01)
+                        std::fprintf(stderr, "  albedo %.6f deconvolution: bin %d [%.3g, %.3g) mean %.4g ratio %.3f (b_end %d)\n", alpha, b,
+                                     bins.inner(b), bins.outer(b), m[b], ratio[b], b_end);
+        }
+        for (int b = 1; b < b_end; ++b) y[b] += std::log(ratio[b]);
+    }
+    rec.profile.resize(nb);
+    for (int b = 0; b < nb; ++b) rec.profile[b] = std::exp(y[b]);
+
+    // Angular distribution of the light reaching the face from inside (inside radiance I(mu)):
+    // orders 2 .. radiance_orders from the next-event estimate at the nodes (exact in
+    // expectation, low variance), higher orders (diffusive, smooth) from a quadratic fitted to
+    // their histogram by weighted least squares.
+    const int na = mc.angle_bins;
+    const std::vector<double> nodes = mc.radiance_cosines();
+    const int J = int(nodes.size());
+    std::vector<double> I(J, 0.0);
+    for (int j = 0; j < J; ++j) I[j] = f.radiance.empty() ? 0.0 : f.radiance[std::size_t(k) * J + j];
+    {
+        // flux in bin a = 2 pi integral over the bin of (c0 + c1 mu + c2 mu^2) mu dmu
+        double A[3][3] = {{0}}, b[3] = {0};
+        double flux = 0;
+        for (int ab = 0; ab < na; ++ab) {
+            const double v = f.arrivals[std::size_t(k) * na + ab];
+            if (!(v > 0)) continue;
+            flux += v;
+            const double lo = double(ab) / na, hi = double(ab + 1) / na;
+            double row[3];
+            for (int p = 0; p < 3; ++p) row[p] = 2 * kPi * (std::pow(hi, p + 2) - std::pow(lo, p + 2)) / (p + 2);
+            for (int p = 0; p < 3; ++p) {
+                for (int q = 0; q < 3; ++q) A[p][q] += row[p] * row[q] / v;  // weight 1 / v (Poisson-like)
+                b[p] += row[p];                                             // v * row / v
+            }
+        }
+        double c[3] = {0, 0, 0};
+        if (flux > 0) {
+            // 3x3 normal equations, Gaussian elimination with partial pivoting
+            for (int p = 0; p < 3; ++p) {
+                int piv = p;
+                for (int q = p + 1; q < 3; ++q)
+                    if (std::fabs(A[q][p]) > std::fabs(A[piv][p])) piv = q;
+                std::swap(A[p], A[piv]);
+                std::swap(b[p], b[piv]);
+                if (A[p][p] == 0) continue;
+                for (int q = p + 1; q < 3; ++q) {
+                    const double m = A[q][p] / A[p][p];
+                    for (int r = p; r < 3; ++r) A[q][r] -= m * A[p][r];
+                    b[q] -= m * b[p];
+                }
+            }
+            for (int p = 3; p-- > 0;) {
+                double v = b[p];
+                for (int q = p + 1; q < 3; ++q) v -= A[p][q] * c[q];
+                c[p] = A[p][p] != 0 ? v / A[p][p] : 0.0;
+            }
+            double res = 0;
+            for (int ab = 0; ab < na; ++ab) {
+                const double v = f.arrivals[std::size_t(k) * na + ab];
+                if (!(v > 0)) continue;
+                const double lo = double(ab) / na, hi = double(ab + 1) / na;
+                double model = 0;
+                for (int p = 0; p < 3; ++p) model += c[p] * 2 * kPi * (std::pow(hi, p + 2) - std::pow(lo, p + 2)) / (p + 2);
+                res += v * sqr(model / v - 1.0);
+            }
+            if (flux > 0.1 * rec.multi) diag.worst_angle_rms = std::max(diag.worst_angle_rms, std::sqrt(res / flux));
+        }
+        for (int j = 0; j < J; ++j) I[j] += std::max(0.0, c[0] + c[1] * nodes[j] + c[2] * nodes[j] * nodes[j]);
+    }
+    // Exitance implied by I: 2 pi integral of Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o; against
+    // the exits' own total it checks the two estimates (diagnostic).
+    const double implied = kPi * exit_sum(I, eta) / (eta * eta);
+    if (rec.multi > 1e-4) {
+        diag.worst_radiance_flux = std::max(diag.worst_radiance_flux, std::fabs(implied / rec.multi - 1.0));
+        if (std::getenv("SSTOOL_DEBUG"))
+            std::fprintf(stderr, "  g %.2f eta %.2f albedo %.6f: angular flux %.5g exits %.5g (%+.4f); I/I(1) at nodes:", g, eta, alpha,
+                         implied, rec.multi, implied / rec.multi - 1.0);
+        if (std::getenv("SSTOOL_DEBUG")) {
+            for (int j = 0; j < J; ++j) std::fprintf(stderr, " %.3f", I[j] / I[J - 1]);
+            std::fprintf(stderr, "\n");
+        }
+    }
+    // Stored as pi I / M with M the exits' own total: exit_factor = Ft(mu_o) [pi I / M] / eta^2
+    // is then pi L / M at every sampled direction without the interpolant's integral in it (that
+    // integral is the diagnostic above).
+    // Where the two estimates of the face's exitance disagree by more than a factor 2 (a face
+    // with a handful of exits: thick slabs' transmission at low albedo), the exits' total is
+    // noise and the ratio can reach 1e6; the angular shape is then normalised by its own flux,
+    // so exit_factor integrates to the face's total as everywhere else.
+    double norm_flux = rec.multi;
+    if (rec.multi > 0 && implied > 0 && std::fabs(std::log(implied / rec.multi)) > std::log(2.0)) {
+        norm_flux = implied;
+        ++diag.noisy_angles;
+    }
+    rec.angle.resize(J);
+    for (int j = 0; j < J; ++j) rec.angle[j] = norm_flux > 0 ? kPi * I[j] / norm_flux : 1.0;
+}
+
+std::uint64_t node_seed(std::uint64_t seed, int node, int incidence) {
+    std::uint64_t x = seed * 0x9e3779b97f4a7c15ULL + std::uint64_t(node) * 0xbf58476d1ce4e5b9ULL +
+                      std::uint64_t(incidence + 1) * 0x94d049bb133111ebULL;
+    x ^= x >> 31;
+    return x;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- settings
+
+ProfileBuildSettings default_profile_build_settings() {
+    ProfileBuildSettings s;
+    s.g = {0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.95};
+    s.eta = {1.0, 1.1, 1.2, 1.3, 1.33, 1.4, 1.5, 1.6, 1.8, 2.0};
+    return s;
+}
+
+std::string ProfileBuildSettings::validate() const {
+    auto axis = [](const std::vector<double>& v, const char* name, double lo, double hi, bool allow_inf) -> std::string {
+        if (v.empty() || v.size() > 64) return std::string(name) + ": expected 1 to 64 values";
+        for (std::size_t i = 0; i < v.size(); ++i) {
+            const bool ok = (v[i] >= lo && v[i] <= hi) || (allow_inf && v[i] == kInf);
+            if (!ok) return std::string(name) + " = " + num(v[i]) + ": expected a value in [" + num(lo) + ", " + num(hi) + "]";
+            if (i > 0 && !(v[i] > v[i - 1])) return std::string(name) + ": expected strictly increasing values";
+        }
+        return "";
+    };
+    std::string e;
+    if (!(e = axis(g, "g", 0.0, 0.99, false)).empty()) return e;
+    if (!(e = axis(eta, "eta", 1.0, 4.0, false)).empty()) return e;
+    if (!(e = axis(thickness, "thickness", 1e-3, 1e6, true)).empty()) return e;
+    if (!(e = axis(cos_inside, "cos_inside", 0.01, 1.0, false)).empty()) return e;
+    if (cos_inside.back() != 1.0) return "cos_inside: expected the last value to be 1 (normal incidence)";
+    if (!(u_0 >= 0 && u_step > 0 && albedos >= 4 && albedos <= 1000 && u_0 + (albedos - 1) * u_step <= 30))
+        return "albedo nodes: expected u_0 >= 0, u_step > 0, 4 to 1000 nodes, u at most 30";
+    if (!(bins.rho_0 > 0 && std::isfinite(bins.rho_0)) || bins.per_decade < 1 || bins.per_decade > 100 || bins.count < 4 ||
+        bins.count > 1000)
+        return "radial bins: expected rho_0 > 0, 1 to 100 per decade, 4 to 1000 bins";
+    if (angle_bins < 4 || angle_bins > 1000 || angle_nodes < 2 || angle_nodes > 32 || !(radiance_orders >= 2 && radiance_orders <= 1e5))
+        return "angles: expected 4 to 1000 bins, 2 to 32 nodes and radiance_orders in [2, 1e5]";
+    if (photons < 1 || !(short_orders >= 1) || !(roulette_order >= 1) || !(oblique_fraction > 0 && oblique_fraction <= 1))
+        return "photons: expected photons >= 1, short_orders >= 1, roulette_order >= 1, oblique_fraction in (0, 1]";
+    return "";
+}
+
+bool ProfileTables::stale(const ProfileBuildSettings& w) const {
+    const ProfileBuildSettings& s = settings;
+    return generator_version != kProfileGeneratorVersion || s.g != w.g || s.eta != w.eta || s.thickness != w.thickness ||
+           s.cos_inside != w.cos_inside || s.u_0 != w.u_0 || s.u_step != w.u_step || s.albedos != w.albedos ||
+           s.bins.rho_0 != w.bins.rho_0 || s.bins.per_decade != w.bins.per_decade || s.bins.count != w.bins.count ||
+           s.angle_bins != w.angle_bins || s.angle_nodes != w.angle_nodes || s.radiance_orders != w.radiance_orders ||
+           s.photons != w.photons ||
+           s.short_photons != w.short_photons || s.short_orders != w.short_orders || s.roulette_order != w.roulette_order ||
+           s.oblique_fraction != w.oblique_fraction || s.seed != w.seed;
+}
+
+std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& s,
+                                                    const std::function<void(const std::string&)>& log) {
+    const std::string bad = s.validate();
+    if (!bad.empty()) throw std::invalid_argument("profile tables: " + bad);
+    const auto t0 = std::chrono::steady_clock::now();
+    auto t = std::make_shared<ProfileTables>();
+    t->settings = s;
+    t->faces = 1;
+    for (double d : s.thickness)
+        if (d != kInf) t->faces = 2;
+    t->records.resize(s.g.size() * s.eta.size() * s.thickness.size() * t->faces * s.albedos);
+    std::vector<double> albedo_nodes(s.albedos);
+    for (int k = 0; k < s.albedos; ++k) albedo_nodes[k] = t->albedo(k);
+
+    // One Monte Carlo run per (g, thickness) serves every eta at once (transport_mc.h).
+    const std::size_t ne = s.eta.size(), nd = s.thickness.size();
+    auto rec_at = [&](std::size_t ig, std::size_t ie, std::size_t id, int face, int k) -> FaceRecord& {
+        return t->records[(((ig * ne + ie) * nd + id) * t->faces + face) * s.albedos + k];
+    };
+    int run = 0;
+    for (std::size_t ig = 0; ig < s.g.size(); ++ig)
+        for (std::size_t id = 0; id < nd; ++id, ++run) {
+            const double g = s.g[ig];
+            const auto tn = std::chrono::steady_clock::now();
+            McSettings mc;
+            mc.g = g;
+            mc.eta = s.eta;
+            mc.thickness = s.thickness[id];
+            mc.photons = s.photons;
+            mc.short_photons = s.short_photons;
+            mc.short_orders = int(std::ceil(s.short_orders / (1.0 - g)));
+            mc.roulette_order = s.roulette_order / (1.0 - g);
+            mc.threads = s.threads;
+            mc.albedos = albedo_nodes;
+            mc.bins = s.bins;
+            mc.angle_bins = s.angle_bins;
+            mc.radiance_orders = int(std::ceil(s.radiance_orders / (1.0 - g)));
+            mc.radiance_nodes = s.angle_nodes;
+            mc.seed = node_seed(s.seed, run, -1);
+            const McResult normal = run_transport_mc(mc);
+            Diagnostics diag;
+            std::uint64_t steps = normal.steps;
+            for (std::size_t ie = 0; ie < ne; ++ie)
+                for (int face = 0; face < t->faces; ++face)
+                    for (int k = 0; k < s.albedos; ++k) {
+                        FaceRecord& rec = rec_at(ig, ie, id, face, k);
+                        process_face(face == 0 ? normal.top[ie] : normal.bottom[ie], normal.settings, k, g, s.eta[ie], rec,
+                                     diag);
+                        rec.incidence.assign(s.cos_inside.size(), 1.0);
+                    }
+            // Incidence factor: totals only, fewer photons.
+            int clamped = 0;
+            McSettings ob = mc;
+            ob.radial = false;
+            ob.radiance_orders = 0;
+            ob.photons = std::max<std::uint64_t>(1, std::uint64_t(double(s.photons) * s.oblique_fraction));
+            ob.short_photons = std::uint64_t(double(s.short_photons) * s.oblique_fraction);
+            for (std::size_t ic = 0; ic + 1 < s.cos_inside.size(); ++ic) {
+                ob.cos_inside = s.cos_inside[ic];
+                ob.seed = node_seed(s.seed, run, int(ic));
+                const McResult r = run_transport_mc(ob);
+                steps += r.steps;
+                for (std::size_t ie = 0; ie < ne; ++ie)
+                    for (int face = 0; face < t->faces; ++face)
+                        for (int k = 0; k < s.albedos; ++k) {
+                            FaceRecord& rec = rec_at(ig, ie, id, face, k);
+                            const double m = (face == 0 ? r.top[ie] : r.bottom[ie]).multi[k];
+                            // A ratio outside [0.05, 20] is noise of a run with too few paths for
+                            // this albedo (the physical factor stays within a few tenths of 1):
+                            // clamped, and counted in the log.
+                            double ratio = rec.multi > 0 && m > 0 ? m / rec.multi : 1.0;
+                            if (ratio < 0.05 || ratio > 20) ++clamped;
+                            rec.incidence[ic] = std::clamp(ratio, 0.05, 20.0);
+                        }
+            }
+            if (log) {
+                char buf[520];
+                const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - tn).count();
+                std::snprintf(buf, sizeof buf,
+                              "g=%g d=%g (%zu etas): %.2f s, %.3g flights, %d threads; tail amplitude flux/fit worst %.3f, "
+                              "deconvolution residual %.1e, high-order angle fit rms residual worst %.3f, angular/exit "
+                              "flux mismatch worst %.4f, incidence factors clamped %d, noise-only tails dropped %d, angular "
+                              "samples normalised by their own flux %d",
+                              g, s.thickness[id], ne, sec, double(steps), normal.threads_used, diag.worst_tail_ratio,
+                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, clamped, diag.dropped_tails,
+                              diag.noisy_angles);
+                log(buf);
+            }
+        }
+    t->build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return t;
+}
+
+}  // namespace shading
