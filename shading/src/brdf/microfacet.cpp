@@ -7,6 +7,7 @@
 #include "shading/brdf/model_spec.h"
 #include "shading/brdf/spec_args.h"
 #include "shading/core/format.h"
+#include "shading/core/quadrature.h"
 
 #include <algorithm>
 #include <sstream>
@@ -14,18 +15,6 @@
 namespace shading {
 
 namespace {
-
-// 5-point Gauss-Legendre on [a, b]: exact for polynomials of degree 9.
-template <class F>
-double gauss_legendre5(const F& f, double a, double b) {
-    static const double x[5] = {0.0, -0.5384693101056831, 0.5384693101056831, -0.9061798459386640,
-                                0.9061798459386640};
-    static const double w[5] = {0.5688888888888889, 0.4786286704993665, 0.4786286704993665,
-                                0.2369268850561891, 0.2369268850561891};
-    double c = 0.5 * (a + b), h = 0.5 * (b - a), s = 0.0;
-    for (int i = 0; i < 5; ++i) s += w[i] * f(c + h * x[i]);
-    return s * h;
-}
 
 // Gaussian D's alpha-density without the constant: exp(-(a n2)^2) cos a sin a.
 struct GaussianIntegrand {

@@ -49,7 +49,8 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& params, cons
                                                 const FindFile& find);
 
 // What the library asks of the renderer about one object with a dipole finish while it samples
-// the object's surface (once per object, from the render threads that reach it first).
+// the object's surface (once per object, from the render threads that reach it first). The
+// facade's twin of subsurface's SurfaceSampler, on purpose: the patches see only this layer.
 class DipoleObject {
 public:
     virtual ~DipoleObject() = default;
