@@ -1,6 +1,6 @@
 // Small value types and the local shading frame used by every model.
 //
-// Conventions (one place, read once):
+// Conventions (MODELS.md section 1 says the same at length):
 //  * Directions are unit vectors in a local frame where the surface normal is +z
 //    and the tangent (for anisotropic models) is +x.
 //  * wo points towards the viewer, wi towards the light; both leave the surface.
