@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["table_albedo"]
+__all__ = ["table_albedo", "halfdiff_albedo"]
 
 
 def _weights(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -61,3 +61,39 @@ def table_albedo(f: np.ndarray, theta_o_deg: np.ndarray, sub: int = 2) -> np.nda
         a += plane[i1][:, p1] * (wi[:, None, None] * wp[None, :, None])
         out[k] = np.einsum("ipc,i->c", a, band) * dphi
     return out
+
+
+def halfdiff_albedo(f: np.ndarray, theta_o_deg: np.ndarray, rows: int = 360, cols: int = 180) -> np.ndarray:
+    """Albedo per channel, shape (len(theta_o_deg), C), of a half/difference table ``f``
+    (theta_h, theta_d, phi_d, C), read by :func:`harness.core.brdf_io.halfdiff_lookup`.
+
+    The integral runs over the half vector h, where a narrow lobe is compact:
+    ``a(theta_o) = integral of f(wo, wi) cos(theta_i) 4 (wo . h) dw_h`` with wi the reflection
+    of wo about h (dw_i = 4 (wo . h) dw_h), on a midpoint grid uniform in sqrt(theta_h) (``rows``
+    bands with exact solid angles, so the finest bands sit at the normal where a narrow lobe is)
+    and in the azimuth of h from the viewer's plane over [0, pi] (``cols``, doubled: the table is
+    even in it). Shares no code with the C++ table or its sampler.
+    """
+    from harness.core.brdf_io import halfdiff_lookup
+
+    u = np.linspace(0.0, 1.0, rows + 1)
+    th_edges = (np.pi / 2) * u ** 2
+    th = (np.pi / 2) * (0.5 * (u[1:] + u[:-1])) ** 2
+    band = np.cos(th_edges[:-1]) - np.cos(th_edges[1:])      # solid angle per unit azimuth
+    ph = (np.arange(cols) + 0.5) * (np.pi / cols)
+    dph = 2.0 * np.pi / cols                                   # both sides of the plane
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    h = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3)
+    weight = np.repeat(band, cols) * dph
+    out = []
+    for to in np.atleast_1d(theta_o_deg):
+        t = np.radians(min(float(to), 89.999))
+        wo = np.array([np.sin(t), 0.0, np.cos(t)])
+        d = h @ wo
+        wi = 2.0 * d[:, None] * h - wo
+        ok = (d > 0) & (wi[:, 2] > 0)
+        wi_ok = wi[ok] / np.linalg.norm(wi[ok], axis=1, keepdims=True)
+        val = halfdiff_lookup(f, wi_ok, np.broadcast_to(wo, wi_ok.shape))
+        g = val * (wi_ok[:, 2] * 4.0 * d[ok] * weight[ok])[:, None]
+        out.append(g.sum(axis=0))
+    return np.array(out)

@@ -273,8 +273,10 @@ TEST(TableSampler, ChiSquareSampleMatchesPdf) {
                            Quadrature::Gauss);
         EXPECT_GT(r.p, sidak) << c.spec << " theta_o=" << c.theta_o << ": chi2=" << r.chi2 << " dof=" << r.dof;
         EXPECT_GT(r.dof, 20) << c.spec;
-        EXPECT_NEAR(r.pdf_mass, 1.0, 2e-3) << c.spec;  // every sample is valid
-        EXPECT_NEAR(r.valid_fraction, 1.0, 1e-4) << c.spec;
+        // Nearly every sample is valid (a half vector whose reflection is below the horizon is
+        // "no sample"), and the pdf integrates to the valid fraction.
+        EXPECT_GT(r.valid_fraction, 0.999) << c.spec;
+        EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 2e-3) << c.spec;
     }
 }
 
@@ -314,29 +316,35 @@ TEST(TableSampler, EstimatorIsUnbiased) {
 }
 
 TEST(TableSampler, SamplesOnlyWhereTheTableIsPositive) {
-    // A narrow lobe (m = 0.05) leaves most of a 1 deg table exactly zero: no sample may land
-    // where f = 0, and the pdf is zero there but positive wherever f is.
+    // A narrow lobe (m = 0.05) leaves most of a 1 deg table exactly zero: the pdf is positive
+    // wherever f is (the estimator is unbiased), and samples where f = 0 (each a zero weight
+    // that adds its rate to the relative variance) are rare: the floors of table_sampler.h.
     auto t = make_table("microfacet d=beckmann m=0.05", 1.0, true);
     const Vec3 wo = spherical_direction(deg(40.5), 0);
     Rng rng(5);
-    int zeros = 0, checked = 0;
-    for (int s = 0; s < 50000; ++s) {
+    int zeros = 0, none = 0;
+    const int n = 200000;
+    for (int s = 0; s < n; ++s) {
         const Vec3 wi = t->sample(wo, rng(), rng());
-        ASSERT_GT(wi.z, 0.0);
+        if (!(wi.z > 0)) {
+            ++none;
+            continue;
+        }
         EXPECT_NEAR(length(wi), 1.0, 1e-12);
         ASSERT_GT(t->pdf(wo, wi), 0.0);
         zeros += t->f(wo, wi).g == 0.0;
     }
-    EXPECT_EQ(zeros, 0);
+    EXPECT_LT(zeros + none, n / 5000) << zeros << " samples where f = 0, " << none << " without a direction";
+    int zero_pdf = 0;
     for (int s = 0; s < 200000; ++s) {
         const Vec3 wi = spherical_direction(std::acos(rng()), 2 * kPi * rng());
         const bool f_pos = t->f(wo, wi).max_component() > 0, p_pos = t->pdf(wo, wi) > 0;
         if (f_pos) {
             ASSERT_TRUE(p_pos) << wi.x << " " << wi.y << " " << wi.z;
         }
-        checked += !p_pos;
+        zero_pdf += !p_pos;
     }
-    EXPECT_GT(checked, 100000);  // most of the hemisphere has no lobe: the sampler knows
+    EXPECT_EQ(zero_pdf, 0);  // the floors keep the whole hemisphere reachable
     EXPECT_EQ(t->pdf(wo, Vec3(0, 0, -1)), 0.0);
     EXPECT_EQ(t->sample(Vec3(0, 0, -1), 0.5, 0.5).z, 0.0);  // viewer below: no sample
 }
@@ -351,11 +359,12 @@ TEST(TableSampler, BuiltOnceSharedAndCounted) {
         ASSERT_NE(s, nullptr);
         EXPECT_EQ(t->sampler(), s);
         bytes = t->sampler_bytes();
-        // 91 theta_o nodes x 90 x 180 cells x 2 bytes, plus the marginals: about 2.9 MB, a third
-        // of the folded RGB payload.
-        EXPECT_GT(bytes, 91u * 90 * 180 * 2);
-        EXPECT_LT(bytes, 91u * 90 * 180 * 2 + 100000);
-        EXPECT_LT(double(bytes), 0.4 * double(t->values().size() * sizeof(float)));
+        // 91 theta_o nodes, each 257 x 49 float node values, 256 x 48 16-bit column and 256
+        // 32-bit row entries: 6.9 MB, three quarters of the folded RGB payload.
+        const size_t per_node = 257 * 49 * 4 + 256 * 48 * 2 + 256 * 4;
+        EXPECT_EQ(s->viewer_nodes(), 91);
+        EXPECT_GT(bytes, 91u * per_node);
+        EXPECT_LT(bytes, 91u * per_node + 10000);
         EXPECT_EQ(TableSampler::memory().live, before + bytes);
         EXPECT_GE(TableSampler::memory().peak, before + bytes);
         // A finish on the table samples through the same sampler.
@@ -365,12 +374,11 @@ TEST(TableSampler, BuiltOnceSharedAndCounted) {
         EXPECT_EQ(t->sampler_bytes(), bytes);
     }
     EXPECT_EQ(TableSampler::memory().live, before);
-    // Anisotropic tables keep the generic mixture.
+    // Anisotropic tables have one too: 19 theta_o x 12 phi_o viewer nodes of a 5 deg table.
     BuildOptions o;
-    auto a = build_table(tabulate(*make_brdf("ward ax=0.1 ay=0.3"), TableGeometry::anisotropic(15.0, 30.0)), o);
-    EXPECT_EQ(a->sampler(), nullptr);
-    const Vec3 wo = spherical_direction(deg(30), 0);
-    EXPECT_EQ(a->pdf(wo, Vec3(0, 0, 1)), a->Brdf::pdf(wo, Vec3(0, 0, 1)));
+    auto a = build_table(tabulate(*make_brdf("ward ax=0.1 ay=0.3"), TableGeometry::anisotropic(5.0, 5.0)), o);
+    ASSERT_NE(a->sampler(), nullptr);
+    EXPECT_EQ(a->sampler()->viewer_nodes(), 19 * 12);
 }
 
 TEST(TableSampler, ConcurrentFirstUseBuildsOne) {
@@ -434,8 +442,8 @@ TEST(TableSampler, HalfDiffTableSampledFromItsOwnValues) {
         Chi2 r = chi2_test([&](double u1, double u2) { return t->sample(wo, u1, u2); },
                            [&](const Vec3& wi) { return t->pdf(wo, wi); }, 200000, seed++, 5, 18, 72, Quadrature::Gauss);
         EXPECT_GT(r.p, sidak) << "theta_o=" << th << ": chi2=" << r.chi2 << " dof=" << r.dof;
-        EXPECT_NEAR(r.pdf_mass, 1.0, 2e-3);
-        EXPECT_NEAR(r.valid_fraction, 1.0, 1e-4);
+        EXPECT_GT(r.valid_fraction, 0.999);
+        EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 2e-3);
 
         Rng rng(seed++);
         const int n = 100000;
@@ -464,4 +472,50 @@ TEST(TableSampler, HalfDiffTableSampledFromItsOwnValues) {
         std::printf("halfdiff sampler, theta_o %.1f: variance %.3g, generic mixture %.3g\n", th, var, var_generic);
     }
     EXPECT_EQ(t->sample(Vec3(0, 0, -1), 0.5, 0.5).z, 0.0);
+}
+
+// ---------------------------------------------------------------- anisotropic tables
+
+TEST(TableSampler, AnisotropicTableSampledFromItsOwnValues) {
+    // An anisotropic lobe (Ward, alpha 0.1 x 0.3) as a 5 deg anisotropic table: sample() and
+    // pdf() agree (chi-square), nearly every sample is valid, and the estimator of the albedo is
+    // unbiased against a midpoint rule with a variance far below the generic mixture's.
+    BuildOptions o;
+    auto t = build_table(tabulate(*make_brdf("ward ax=0.1 ay=0.3 rho_d=0.1 rho_s=0.6"), TableGeometry::anisotropic(5.0, 5.0)), o);
+    const double sidak = 1.0 - std::pow(1.0 - 0.01, 1.0 / 3.0);
+    uint64_t seed = 31;
+    for (auto [th, ph] : {std::pair{22.0, 17.0}, std::pair{50.0, 100.0}, std::pair{71.0, 250.0}}) {
+        const Vec3 wo = spherical_direction(deg(th), deg(ph));
+        Chi2 r = chi2_test([&](double u1, double u2) { return t->sample(wo, u1, u2); },
+                           [&](const Vec3& wi) { return t->pdf(wo, wi); }, 200000, seed++, 3, 18, 72, Quadrature::Gauss);
+        EXPECT_GT(r.p, sidak) << "theta_o=" << th << ": chi2=" << r.chi2 << " dof=" << r.dof;
+        EXPECT_GT(r.valid_fraction, 0.995);
+        EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 3e-3);
+
+        Rng rng(seed++);
+        const int n = 100000;
+        Rgb sum, sum_generic;
+        double sq = 0, sq_generic = 0;
+        for (int s = 0; s < n; ++s) {
+            const double u1 = rng(), u2 = rng();
+            const Vec3 wi = t->sample(wo, u1, u2);
+            if (wi.z > 0) {
+                const Rgb v = t->f(wo, wi) * (wi.z / t->pdf(wo, wi));
+                sum += v;
+                sq += sqr(v.g);
+            }
+            const Vec3 wg = t->Brdf::sample(wo, u1, u2);
+            if (wg.z > 0) {
+                const Rgb v = t->f(wo, wg) * (wg.z / t->Brdf::pdf(wo, wg));
+                sum_generic += v;
+                sq_generic += sqr(v.g);
+            }
+        }
+        const Rgb want = midpoint_albedo(*t, wo);
+        EXPECT_NEAR((sum / n).g / want.g, 1.0, 5e-3) << "theta_o " << th;
+        const double var = sq / n - sqr((sum / n).g), var_generic = sq_generic / n - sqr((sum_generic / n).g);
+        EXPECT_LT(var, 0.2 * var_generic) << "theta_o " << th << ": " << var << " vs " << var_generic;
+        std::printf("anisotropic sampler, theta_o %.0f phi_o %.0f: variance %.3g, generic mixture %.3g\n", th, ph, var,
+                    var_generic);
+    }
 }

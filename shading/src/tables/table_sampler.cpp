@@ -1,4 +1,4 @@
-// Importance sampling of tables from their own data (table_sampler.h).
+// Importance sampling of tables from their own data, in half-vector space (table_sampler.h).
 #include "shading/tables/table_sampler.h"
 
 #include <algorithm>
@@ -21,9 +21,31 @@ void account_add(size_t bytes) {
     }
 }
 
-// Resolution of the integer CDFs. A node's rows share 2^30 units; a row's cells share up to
-// 65535 - 2 (cells - 1) units, so that rounding up every positive weight to at least one unit
-// still fits 16 bits (a 0.01 deg table, 18000 phi cells, keeps 29535 units).
+// The half-vector grid: rows x columns per viewer node. Isotropic columns cover [0, pi],
+// anisotropic ones [0, 2 pi) (and their viewer nodes are 12 times as many, so fewer rows).
+// Measured (table_sampler.h): the per-sample spread of f cos / pdf falls with the rows
+// squared (bilinear cells), hardly with the columns; 256 rows warped by 2.5 resolve a
+// Beckmann m = 0.02 lobe to 0.3-0.5 % per sample.
+constexpr int kRowsIso = 256, kColsIso = 48;
+constexpr int kRowsAniso = 64, kColsAniso = 64;
+constexpr double kRowWarp = 2.5;
+constexpr int kAzimuthNodesAniso = 12;
+
+// The support: a grid node where the table is zero keeps a small value so that every direction
+// where the table can be positive between the nodes has a positive density (the estimator
+// stays unbiased), yet the samples spent where the table is zero stay rare (each one is a
+// zero weight, and a fraction p of them adds p to the relative variance):
+//  * next to a positive node (8-neighbourhood): kEdgeFloor of its largest neighbour (a lobe's
+//    edge, where the table tapers to zero between the nodes);
+//  * elsewhere with wi above the horizon, or below it by less than a cell (a cell whose corners
+//    are all below can still reach above it): kFloor of the node's mean density.
+constexpr double kEdgeFloor = 1e-2;
+constexpr double kFloor = 1e-6;
+constexpr double kFloorHorizon = -0.15;
+
+// Resolution of the integer CDFs. A node's rows share 2^30 units; a row's cells share
+// 65535 - 2 cells units, so that rounding up every positive weight to at least one unit still
+// fits 16 bits.
 constexpr double kRowUnits = double(1u << 30);
 
 // Units of a positive weight: its rounded share, at least 1.
@@ -32,87 +54,143 @@ uint32_t units(double w, double total, double scale) {
     return uint32_t(std::max(1.0, std::round(w / total * scale)));
 }
 
+// x in [0, 1) with density proportional to (1 - x) a + x b (a, b >= 0, a + b > 0), from u in
+// [0, 1): the root of the quadratic CDF in the form without cancellation.
+double sample_linear(double u, double a, double b) {
+    if (u == 0 && a == 0) return 0.0;
+    const double x = u * (a + b) / (a + std::sqrt((1.0 - u) * a * a + u * b * b));
+    return std::min(x, kOneMinusEps);
+}
+
+double lerp(double a, double b, double t) { return a + t * (b - a); }
+
+// Fraction of the way from an integer CDF's entry below the chosen one to the chosen one.
+template <class T>
+int pick(const T* cdf, int n, double u, double* frac) {
+    const double target = u * double(cdf[n - 1]);
+    const int i = int(std::upper_bound(cdf, cdf + n, target) - cdf);
+    if (i >= n) return n;
+    const double lo = i ? double(cdf[i - 1]) : 0.0;
+    *frac = std::clamp((target - lo) / (double(cdf[i]) - lo), 0.0, kOneMinusEps);
+    return i;
+}
+
 }  // namespace
 
 TableSampler::TableSampler(const BrdfTable& table) {
-    // Half/difference tables (isotropic BRDFs on another grid) are sampled on a 1 deg
-    // isotropic grid of their own values; their cells get a floor (below) because a lobe
-    // narrower than a cell can be positive where all four corners are nearly zero.
-    const bool own_grid = table.geometry().layout == TableLayout::Isotropic;
-    if (!own_grid && table.geometry().layout != TableLayout::HalfDiff)
-        throw std::invalid_argument("TableSampler: isotropic or half/difference tables only");
-    const TableGeometry g = own_grid ? table.geometry() : TableGeometry::isotropic(1.0, table.geometry().channels);
-    n_theta_i_ = int(g.n[0]);
-    n_theta_o_ = int(g.n[1]);
-    n_phi_ = int(g.n[2]);
-    cells_t_ = n_theta_i_ - 1;
-    cells_p_ = n_phi_ - 1;
-    step_t_deg_ = g.step_deg(0);
-    step_o_deg_ = g.step_deg(1);
-    step_p_deg_ = g.step_deg(2);
-    const double cell_units = 65535.0 - 2.0 * cells_p_;  // >= 29535 (validate(): <= 18001 phi nodes)
+    const TableGeometry& g = table.geometry();
+    mirror_ = g.layout != TableLayout::Anisotropic;
+    switch (g.layout) {
+        case TableLayout::Isotropic: n_to_ = int(g.n[1]); break;
+        case TableLayout::HalfDiff: n_to_ = 91; break;
+        case TableLayout::Anisotropic: n_to_ = int(g.n[2]); break;
+    }
+    n_po_ = mirror_ ? 1 : kAzimuthNodesAniso;
+    step_to_ = (kPi / 2) / (n_to_ - 1);
+    step_po_ = 2 * kPi / n_po_;
+    cells_h_ = mirror_ ? kRowsIso : kRowsAniso;
+    cells_p_ = mirror_ ? kColsIso : kColsAniso;
+    dphi_ = (mirror_ ? kPi : 2 * kPi) / cells_p_;
+    node_frame_ = g.layout != TableLayout::HalfDiff;
+    place_rows();
+    const int nodes = n_to_ * n_po_;
+    total_.assign(nodes, 0.0);
+    value_.assign(size_t(nodes) * (cells_h_ + 1) * (cells_p_ + 1), 0.0f);
+    marginal_.assign(size_t(nodes) * cells_h_, 0);
+    conditional_.assign(size_t(nodes) * cells_h_ * cells_p_, 0);
+    std::vector<double> work;
+    for (int k = 0; k < nodes; ++k) build_node(table, k, node_direction(k), work);
+    bytes_ = sizeof(*this) + omc_.capacity() * sizeof(double) + total_.capacity() * sizeof(double) +
+             value_.capacity() * sizeof(float) + marginal_.capacity() * sizeof(uint32_t) +
+             conditional_.capacity() * sizeof(uint16_t);
+    account_add(bytes_);
+}
 
-    sin2_.resize(n_theta_i_);
-    for (int a = 0; a < n_theta_i_; ++a) sin2_[a] = sqr(std::sin(g.axis_deg(0, uint32_t(a)) * kDegree));
-    total_.assign(n_theta_o_, 0.0);
-    marginal_.assign(size_t(n_theta_o_) * cells_t_, 0);
-    conditional_.assign(size_t(n_theta_o_) * cells_t_ * cells_p_, 0);
+Vec3 TableSampler::node_direction(int k) const {
+    const int j = k / n_po_, q = k % n_po_;
+    // The grazing node a thousandth of a radian inside: wo exactly in the surface has no
+    // reflection.
+    return spherical_direction(std::min(j * step_to_, kPi / 2 - 1e-3), q * step_po_);
+}
 
-    const int C = g.channels;
-    const double dphi = step_p_deg_ * kDegree;
-    std::vector<double> lum(size_t(n_theta_i_) * n_phi_), w(cells_p_), row(cells_t_);
-    for (int j = 0; j < n_theta_o_; ++j) {
-        // Channel mean of every node at this theta_o.
-        for (int a = 0; a < n_theta_i_; ++a)
-            for (int b = 0; b < n_phi_; ++b) {
-                double s = 0;
-                if (own_grid) {
-                    for (int c = 0; c < C; ++c) s += table.node(uint32_t(a), uint32_t(j), uint32_t(b), 0, c);
-                    s /= C;
-                } else {
-                    s = table.eval_iso(g.axis_deg(0, uint32_t(a)) * kDegree, g.axis_deg(1, uint32_t(j)) * kDegree,
-                                       g.axis_deg(2, uint32_t(b)) * kDegree, Interp::Linear).average();
-                }
-                lum[size_t(a) * n_phi_ + b] = s;
-            }
-        if (!own_grid) {
-            // Floor: 1e-3 of the mean node value, so every direction keeps a positive density
-            // (the estimator stays unbiased whatever the lobe does between the grid's nodes).
-            double mean = 0;
-            for (double v : lum) mean += v;
-            mean /= double(lum.size());
-            for (double& v : lum) v = std::max(v, 1e-3 * mean);
-        }
-        double node_total = 0;
-        for (int a = 0; a < cells_t_; ++a) {
-            // Integral of cos over the cell and its mirror image (-phi): dphi (sin^2 - sin^2).
-            const double band = dphi * (sin2_[a + 1] - sin2_[a]);
-            const double* lo = &lum[size_t(a) * n_phi_];
-            const double* hi = lo + n_phi_;
-            double row_total = 0;
-            for (int b = 0; b < cells_p_; ++b) {
-                w[b] = 0.25 * (lo[b] + lo[b + 1] + hi[b] + hi[b + 1]) * band;
-                row_total += w[b];
-            }
-            uint16_t* cdf = &conditional_[(size_t(j) * cells_t_ + a) * cells_p_];
-            uint32_t acc = 0;
-            for (int b = 0; b < cells_p_; ++b) {
-                acc += units(w[b], row_total, cell_units);
-                cdf[b] = uint16_t(acc);
-            }
-            row[a] = row_total;
-            node_total += row_total;
-        }
-        total_[j] = node_total;
-        uint32_t acc = 0;
-        for (int a = 0; a < cells_t_; ++a) {
-            acc += units(row[a], node_total, kRowUnits);
-            marginal_[size_t(j) * cells_t_ + a] = acc;
+void TableSampler::place_rows() {
+    // Row edges at theta_h = (pi/2) (a / H)^kRowWarp: uniform in u = (theta_h / (pi/2))^(1/kRowWarp).
+    const int H = cells_h_;
+    omc_.assign(H + 1, 0.0);
+    for (int a = 1; a < H; ++a)
+        omc_[a] = 2.0 * sqr(std::sin(0.5 * (kPi / 2) * std::pow(double(a) / H, kRowWarp)));
+    omc_[H] = 1.0;
+}
+
+void TableSampler::build_node(const BrdfTable& table, int k, const Vec3& wo, std::vector<double>& g) {
+    const int H = cells_h_, P = cells_p_, W = P + 1;
+    // The viewer's azimuth: isotropic grids are measured from it (wo at phi 0 here),
+    // anisotropic ones from the tangent.
+    const double phi_o = std::atan2(wo.y, wo.x);
+    g.assign(size_t(H + 1) * W, 0.0);
+    std::vector<char> near_horizon(g.size(), 0);
+    for (int a = 0; a <= H; ++a) {
+        const double cos_h = 1.0 - omc_[a], sin_h = std::sqrt(std::max(0.0, omc_[a] * (2.0 - omc_[a])));
+        for (int b = 0; b <= P; ++b) {
+            const double phi = b * dphi_ + (mirror_ ? phi_o : 0.0);
+            const Vec3 h(sin_h * std::cos(phi), sin_h * std::sin(phi), cos_h);
+            const double d = dot(wo, h);
+            const Vec3 wi = h * (2.0 * d) - wo;
+            const size_t at = size_t(a) * W + b;
+            near_horizon[at] = d > 0 && wi.z > kFloorHorizon;
+            if (!(d > 0) || !(wi.z > 0)) continue;
+            const double v = table.f(wo, normalize(wi)).average() * wi.z * 4.0 * d;
+            g[at] = std::isfinite(v) && v > 0 ? v : 0.0;
         }
     }
-    bytes_ = sizeof(*this) + sin2_.capacity() * sizeof(double) + total_.capacity() * sizeof(double) +
-             marginal_.capacity() * sizeof(uint32_t) + conditional_.capacity() * sizeof(uint16_t);
-    account_add(bytes_);
+    // Mass of each cell: its solid angle (one side) times the mean of its corners.
+    auto mass = [&](int a, int b) {
+        const double* c = &g[size_t(a) * W + b];
+        return 0.25 * (c[0] + c[1] + c[W] + c[W + 1]) * (omc_[a + 1] - omc_[a]) * dphi_;
+    };
+    double raw = 0;
+    for (int a = 0; a < H; ++a)
+        for (int b = 0; b < P; ++b) raw += mass(a, b);
+    if (!(raw > 0)) return;  // a table that is zero for this viewer: the node is never chosen
+    const double floor = kFloor * raw / (omc_[H] * P * dphi_);
+    std::vector<double> v(g.size(), 0.0);
+    for (int a = 0; a <= H; ++a)
+        for (int b = 0; b <= P; ++b) {
+            const size_t at = size_t(a) * W + b;
+            if (g[at] > 0) {
+                v[at] = g[at];
+                continue;
+            }
+            if (!near_horizon[at]) continue;
+            double edge = 0;
+            for (int da = -1; da <= 1; ++da)
+                for (int db = -1; db <= 1; ++db) {
+                    const int aa = a + da, bb = b + db;
+                    if (aa >= 0 && aa <= H && bb >= 0 && bb <= P) edge = std::max(edge, g[size_t(aa) * W + bb]);
+                }
+            v[at] = std::max(kEdgeFloor * edge, floor);
+        }
+    g.swap(v);
+    float* val = &value_[size_t(k) * (H + 1) * W];
+    for (size_t i = 0; i < g.size(); ++i) {
+        val[i] = float(g[i]);
+        g[i] = double(val[i]);  // the masses below are those of the stored values
+    }
+    const double cell_units = 65535.0 - 2.0 * P;
+    std::vector<double> row(H), w(P);
+    double node_total = 0;
+    for (int a = 0; a < H; ++a) {
+        double row_total = 0;
+        for (int b = 0; b < P; ++b) row_total += (w[b] = mass(a, b));
+        uint16_t* cdf = &conditional_[(size_t(k) * H + a) * P];
+        uint32_t acc = 0;
+        for (int b = 0; b < P; ++b) cdf[b] = uint16_t(acc += units(w[b], row_total, cell_units));
+        row[a] = row_total;
+        node_total += row_total;
+    }
+    total_[k] = node_total;
+    uint32_t acc = 0;
+    for (int a = 0; a < H; ++a) marginal_[size_t(k) * H + a] = (acc += units(row[a], node_total, kRowUnits));
 }
 
 TableSampler::~TableSampler() { g_live_bytes.fetch_sub(bytes_); }
@@ -121,95 +199,157 @@ TableSampler::Memory TableSampler::memory() { return {g_live_bytes.load(), g_pea
 
 size_t TableSampler::bytes_used() const { return bytes_; }
 
-bool TableSampler::mixture(double cos_o, Mixture* m) const {
-    const double x = std::acos(std::clamp(cos_o, 0.0, 1.0)) * kRadToDeg / step_o_deg_;
-    const int j0 = std::clamp(int(x), 0, n_theta_o_ - 2);
+bool TableSampler::mixture(const Vec3& wo, Mixture* m) const {
+    const double x = std::acos(std::clamp(wo.z, 0.0, 1.0)) / step_to_;
+    const int j0 = std::clamp(int(x), 0, n_to_ - 2);
     const double t = std::clamp(x - j0, 0.0, 1.0);
-    // The interpolated table's albedo at theta_o splits between the nodes like this.
-    const double a0 = (1.0 - t) * total_[j0], a1 = t * total_[j0 + 1];
-    if (!(a0 + a1 > 0)) return false;
-    *m = {j0, j0 + 1, a0 / (a0 + a1)};
+    int q0 = 0, q1 = 0;
+    double tq = 0;
+    if (n_po_ > 1) {
+        double phi = std::atan2(wo.y, wo.x);
+        if (phi < 0) phi += 2 * kPi;
+        const double y = phi / step_po_;
+        q0 = std::clamp(int(y), 0, n_po_ - 1);
+        tq = std::clamp(y - q0, 0.0, 1.0);
+        q1 = (q0 + 1) % n_po_;
+    }
+    const int nodes[4] = {j0 * n_po_ + q0, (j0 + 1) * n_po_ + q0, j0 * n_po_ + q1, (j0 + 1) * n_po_ + q1};
+    const double wts[4] = {(1 - t) * (1 - tq), t * (1 - tq), (1 - t) * tq, t * tq};
+    double sum = 0;
+    m->count = 0;
+    const double so = std::hypot(wo.x, wo.y);
+    const double co = so > 0 ? wo.x / so : 1.0, sn = so > 0 ? wo.y / so : 0.0;
+    for (int i = 0; i < (n_po_ > 1 ? 4 : 2); ++i) {
+        const double p = wts[i] * total_[nodes[i]];
+        if (!(p > 0)) continue;
+        Vec3 ref = wo;
+        if (node_frame_) {  // the node's theta_o at the viewer's azimuth
+            const double th = std::min((nodes[i] / n_po_) * step_to_, kPi / 2 - 1e-3);
+            ref = Vec3(std::sin(th) * co, std::sin(th) * sn, std::cos(th));
+        }
+        m->ref[m->count] = ref;
+        m->node[m->count] = nodes[i];
+        m->p[m->count++] = p;
+        sum += p;
+    }
+    if (!(sum > 0)) return false;
+    for (int i = 0; i < m->count; ++i) m->p[i] /= sum;
     return true;
 }
 
-double TableSampler::cell_pdf(int j, int a, int b) const {
-    const uint32_t* rows = &marginal_[size_t(j) * cells_t_];
-    const uint32_t q_all = rows[cells_t_ - 1], q_a = rows[a] - (a ? rows[a - 1] : 0u);
+double TableSampler::node_density(int k, const HPos& pos) const {
+    const int H = cells_h_, P = cells_p_, W = P + 1;
+    const uint32_t* rows = &marginal_[size_t(k) * H];
+    const uint32_t q_a = rows[pos.a] - (pos.a ? rows[pos.a - 1] : 0u);
     if (q_a == 0) return 0.0;
-    const uint16_t* cells = &conditional_[(size_t(j) * cells_t_ + a) * cells_p_];
-    const uint32_t r_all = cells[cells_p_ - 1], r_b = uint32_t(cells[b]) - (b ? cells[b - 1] : 0u);
-    return (double(q_a) / q_all) * (double(r_b) / r_all);
+    const uint16_t* cells = &conditional_[(size_t(k) * H + pos.a) * P];
+    const uint32_t r_b = uint32_t(cells[pos.b]) - (pos.b ? cells[pos.b - 1] : 0u);
+    if (r_b == 0) return 0.0;
+    const float* c = &value_[(size_t(k) * (H + 1) + pos.a) * W + pos.b];
+    const double v00 = c[0], v01 = c[1], v10 = c[W], v11 = c[W + 1];
+    const double mean = 0.25 * (v00 + v01 + v10 + v11);
+    const double here = lerp(lerp(v00, v01, pos.t), lerp(v10, v11, pos.t), pos.s);
+    return (double(q_a) / rows[H - 1]) * (double(r_b) / cells[P - 1]) * here / mean;
 }
 
 Vec3 TableSampler::sample(const Vec3& wo, double u1, double u2) const {
     if (!(wo.z > 0)) return {};
     Mixture m;
-    if (!mixture(wo.z, &m)) return {};
-    // Node: u2 split at alpha and stretched back to [0, 1).
-    int j = m.j1;
-    double v = u2;
-    if (u2 < m.alpha) {
-        j = m.j0;
-        v = u2 / m.alpha;
-    } else {
-        v = (u2 - m.alpha) / (1.0 - m.alpha);
-    }
+    if (!mixture(wo, &m)) return {};
+    // Node: u2 split at the nodes' probabilities and stretched back to [0, 1).
+    int i = 0;
+    double v = std::clamp(u2, 0.0, kOneMinusEps);
+    while (i < m.count - 1 && v >= m.p[i]) v -= m.p[i++];
+    v = std::clamp(v / m.p[i], 0.0, kOneMinusEps);
+    const int k = m.node[i], H = cells_h_, P = cells_p_, W = P + 1;
     u1 = std::clamp(u1, 0.0, kOneMinusEps);
-    v = std::clamp(v, 0.0, kOneMinusEps);
 
-    // Row a by the marginal (u1), cell b by the conditional (v); the remainders place the
-    // direction inside the cell.
-    const uint32_t* rows = &marginal_[size_t(j) * cells_t_];
-    const double target_a = u1 * rows[cells_t_ - 1];
-    const int a = int(std::upper_bound(rows, rows + cells_t_, target_a) - rows);
-    if (a >= cells_t_) return {};  // a node of total weight 0 (only when alpha is 0 or 1)
-    const double lo_a = a ? rows[a - 1] : 0.0;
-    const double fu = std::clamp((target_a - lo_a) / (rows[a] - lo_a), 0.0, 1.0);
-
-    const uint16_t* cells = &conditional_[(size_t(j) * cells_t_ + a) * cells_p_];
-    const double target_b = v * cells[cells_p_ - 1];
-    const int b = int(std::upper_bound(cells, cells + cells_p_, target_b) - cells);
-    if (b >= cells_p_) return {};
-    const double lo_b = b ? cells[b - 1] : 0.0;
-    double fv = std::clamp((target_b - lo_b) / (cells[b] - lo_b), 0.0, 1.0);
-    // Half the cell's mass on each side of the viewer's plane of incidence.
-    const bool plus = fv < 0.5;
-    fv = plus ? 2.0 * fv : 2.0 * fv - 1.0;
-
-    // Density proportional to cos inside the cell: sin^2 theta uniform over the cell.
-    const double s2 = sin2_[a] + fu * (sin2_[a + 1] - sin2_[a]);
-    const double cos_i = std::sqrt(std::max(0.0, 1.0 - s2)), sin_i = std::sqrt(std::max(0.0, s2));
-    if (!(cos_i > 0)) return {};  // exactly grazing: a set of measure zero
-    const double phi = std::min((b + fv) * step_p_deg_, 180.0) * kDegree;
-    // phi = phi_o - phi_i (the table's phi_r - phi_i): wi's azimuth is phi_o -+ phi.
-    const double so = std::hypot(wo.x, wo.y);
-    const double co_phi = so > 0 ? wo.x / so : 1.0, so_phi = so > 0 ? wo.y / so : 0.0;
-    const double cp = std::cos(phi), sp = plus ? std::sin(phi) : -std::sin(phi);
-    const double ci_phi = co_phi * cp + so_phi * sp, si_phi = so_phi * cp - co_phi * sp;
-    return {sin_i * ci_phi, sin_i * si_phi, cos_i};
+    // Row a by the marginal (u1), column b by the conditional (v); the remainders place the
+    // half vector inside the cell.
+    double fs = 0, ft = 0;
+    const int a = pick(&marginal_[size_t(k) * H], H, u1, &fs);
+    if (a >= H) return {};  // a node of total mass 0 (never chosen: its probability is 0)
+    bool plus = true;
+    if (mirror_) {
+        // Each side of the viewer's plane of incidence with probability 1/2, v folded so that
+        // the map stays continuous: v = 1/2 is phi_h = 0 on both sides, v = 0 and 1 are
+        // phi_h = -pi and pi, the same half plane (stratified u keep their spacing).
+        plus = v >= 0.5;
+        v = std::clamp(plus ? 2.0 * v - 1.0 : 1.0 - 2.0 * v, 0.0, kOneMinusEps);
+    }
+    const int b = pick(&conditional_[(size_t(k) * H + a) * P], P, v, &ft);
+    if (b >= P) return {};
+    // Bilinear density inside the cell: s (along 1 - cos theta_h) by its linear marginal,
+    // then t (along phi_h) by its linear conditional.
+    const float* c = &value_[(size_t(k) * (H + 1) + a) * W + b];
+    const double v00 = c[0], v01 = c[1], v10 = c[W], v11 = c[W + 1];
+    const double s = sample_linear(fs, v00 + v01, v10 + v11);
+    const double t = sample_linear(ft, lerp(v00, v10, s), lerp(v01, v11, s));
+    const double omc = lerp(omc_[a], omc_[a + 1], s);
+    const double cos_h = 1.0 - omc, sin_h = std::sqrt(std::max(0.0, omc * (2.0 - omc)));
+    double phi = (b + t) * dphi_;
+    if (!plus) phi = -phi;
+    double cp = std::cos(phi), sp = std::sin(phi);
+    const Vec3& ref = m.ref[i];  // wi is the reflection of this direction
+    if (mirror_) {  // measured from the viewer's azimuth
+        const double so = std::hypot(ref.x, ref.y);
+        const double co = so > 0 ? ref.x / so : 1.0, sn = so > 0 ? ref.y / so : 0.0;
+        const double c2 = co * cp - sn * sp, s2 = sn * cp + co * sp;
+        cp = c2;
+        sp = s2;
+    }
+    const Vec3 h(sin_h * cp, sin_h * sp, cos_h);
+    const double d = dot(ref, h);
+    if (!(d > 0)) return {};
+    const Vec3 wi = normalize(h * (2.0 * d) - ref);
+    if (!(wi.z > 0)) return {};
+    return wi;
 }
 
 double TableSampler::pdf(const Vec3& wo, const Vec3& wi) const {
     if (!(wo.z > 0) || !(wi.z > 0)) return 0.0;
     Mixture m;
-    if (!mixture(wo.z, &m)) return 0.0;
-    const double cos_i = std::min(wi.z, 1.0);
-    const int a = std::clamp(int(std::acos(cos_i) * kRadToDeg / step_t_deg_), 0, cells_t_ - 1);
-    // phi between the projections of wo and wi (0 at a pole, where nothing depends on it).
-    const double so = std::hypot(wo.x, wo.y), si = std::hypot(wi.x, wi.y);
-    const double cphi = so > 0 && si > 0 ? std::clamp((wo.x * wi.x + wo.y * wi.y) / (so * si), -1.0, 1.0) : 1.0;
-    const int b = std::clamp(int(std::acos(cphi) * kRadToDeg / step_p_deg_), 0, cells_p_ - 1);
+    if (!mixture(wo, &m)) return 0.0;
     double p = 0;
-    if (m.alpha > 0) p += m.alpha * cell_pdf(m.j0, a, b);
-    if (m.alpha < 1) p += (1.0 - m.alpha) * cell_pdf(m.j1, a, b);
-    // Inside the cell (and its mirror image) the density is cos / integral of cos.
-    return p * cos_i / (step_p_deg_ * kDegree * (sin2_[a + 1] - sin2_[a]));
+    for (int i = 0; i < m.count; ++i) {
+        const Vec3& ref = m.ref[i];
+        const Vec3 sum = ref + wi;
+        const double len = length(sum);
+        if (!(len > 0)) continue;
+        const Vec3 h = sum * (1.0 / len);
+        const double d = dot(ref, h);
+        if (!(d > 0)) continue;
+        const double sin_h = std::hypot(h.x, h.y);
+        const double omc = 2.0 * sqr(std::sin(0.5 * std::atan2(sin_h, h.z)));
+        HPos pos;
+        pos.a = std::clamp(int(std::upper_bound(omc_.begin(), omc_.end(), omc) - omc_.begin()) - 1, 0, cells_h_ - 1);
+        pos.s = std::clamp((omc - omc_[pos.a]) / (omc_[pos.a + 1] - omc_[pos.a]), 0.0, 1.0);
+        // phi_h: from the viewer's azimuth folded to [0, pi] (isotropic), or from the tangent.
+        double phi = 0;
+        if (sin_h > 0) {
+            if (mirror_) {
+                const double so = std::hypot(ref.x, ref.y);
+                const double co = so > 0 ? ref.x / so : 1.0, sn = so > 0 ? ref.y / so : 0.0;
+                phi = std::abs(std::atan2(co * h.y - sn * h.x, co * h.x + sn * h.y));
+            } else {
+                phi = std::atan2(h.y, h.x);
+                if (phi < 0) phi += 2 * kPi;
+            }
+        }
+        const double x = phi / dphi_;
+        pos.b = std::clamp(int(x), 0, cells_p_ - 1);
+        pos.t = std::clamp(x - pos.b, 0.0, 1.0);
+        // Per unit solid angle of h: the cell's (both sides when mirrored), then the
+        // reflection's Jacobian dw_i = 4 (ref . h) dw_h.
+        const double area = (omc_[pos.a + 1] - omc_[pos.a]) * dphi_ * (mirror_ ? 2.0 : 1.0);
+        p += m.p[i] * node_density(m.node[i], pos) / (area * 4.0 * d);
+    }
+    return p;
 }
 
 // ---------------------------------------------------------------- the table's sampling
 
 const TableSampler* BrdfTable::sampler() const {
-    if (geom_.layout == TableLayout::Anisotropic) return nullptr;  // the generic mixture
     if (const TableSampler* s = sampler_ready_.load(std::memory_order_acquire)) return s;
     std::call_once(sampler_once_, [this] {
         sampler_ = std::unique_ptr<const TableSampler, SamplerDeleter>(new TableSampler(*this));

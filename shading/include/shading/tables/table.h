@@ -181,13 +181,12 @@ public:
     bool anisotropic() const override { return geom_.layout == TableLayout::Anisotropic; }
     std::string describe() const override;
 
-    // Importance sampling from the table's own data (isotropic tables: TableSampler, built on
-    // the first call and shared by everything that holds the table; sample_glossy/pdf_glossy
-    // are the same, a table having no Lambertian base). Anisotropic tables keep Brdf's
-    // generic mixture.
+    // Importance sampling from the table's own data (TableSampler, every layout: built on the
+    // first call and shared by everything that holds the table; sample_glossy/pdf_glossy are
+    // the same, a table having no Lambertian base).
     Vec3 sample(const Vec3& wo, double u1, double u2) const override;
     double pdf(const Vec3& wo, const Vec3& wi) const override;
-    const TableSampler* sampler() const;  // null for anisotropic tables
+    const TableSampler* sampler() const;
     size_t sampler_bytes() const;          // 0 until the sampler is built
 
     // Lookups by angle, radians. Isotropic tables: phi = phi_r - phi_i, any real value.
