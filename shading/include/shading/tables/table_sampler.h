@@ -1,33 +1,46 @@
 // Importance sampling of a table from its own data: the glossy rays of a
 // `brdf_table { "file" samples N }` finish follow the measured lobe, not a generic mixture.
+// Two forms, one per kind of interpolation, each with its viewer nodes mixed the same way: a
+// viewer between nodes chooses a node with probability proportional to its interpolation
+// weight times the node's total mass (the interpolated table's albedo splits the same way);
+// pdf() is the same mixture. Cells are chosen from a marginal over rows and a conditional over
+// columns, integer CDFs of 2^30 units each (sample() and pdf() read the same integers, so they
+// agree exactly; a positive weight keeps at least one unit, so every cell where the table is
+// positive stays reachable and the estimator stays unbiased).
 //
-// The distribution lives in half-vector space, where a glossy lobe is compact and hardly
-// moves with the viewer (a microfacet lobe is D(h) for every wo), so a fixed grid resolves a
-// lobe of any width the grid's finest rows can hold:
-//  * Viewer nodes: isotropic tables use the table's theta_r nodes, half/difference tables
-//    every degree of theta_o; anisotropic tables the table's theta_r nodes x every 30 deg of
-//    phi_o. A viewer between nodes mixes the nodes' distributions with probabilities
-//    proportional to their interpolation weights times their total mass (the interpolated
-//    table's albedo splits the same way); pdf() is the same mixture.
-//  * Per node, a grid over the half vector h: rows in theta_h with edges at
-//    (pi/2) (k / H)^2 (fine near the normal, where narrow lobes are: 0.9 deg at k = 8 of 128),
-//    columns in phi_h. Isotropic layouts measure phi_h from the viewer's azimuth over
-//    [0, pi] (the table is even in phi; each side of the plane of incidence gets half the
-//    mass); anisotropic tables from the tangent over [0, 2 pi).
-//  * At every grid node the target g(h) = f(wo, wi) cos(theta_i) 4 (wo . h), the channel
-//    mean of the interpolated table for wi = reflect(wo, h): the density of f cos per unit
-//    solid angle of h. Inside a cell the density per solid angle is bilinear in
-//    (1 - cos theta_h, phi_h) between the cell's four nodes (sampled exactly by inverting the
-//    linear marginal and conditional), so it follows the lobe's slope, not only its cell
-//    mean; cells are chosen from a marginal over rows and a conditional over columns (integer
-//    CDFs: sample() and pdf() read the same integers, so they agree exactly).
-//  * Every node value is floored at 1e-3 of the node's mean density wherever wi is above or
-//    near the horizon, so every direction where the table can be positive keeps a positive
-//    density (the estimator stays unbiased whatever the table does between grid nodes).
-//  * wi = reflect(wo, h) and pdf(wi) = pdf_h(h) / (4 wo . h). A half vector whose reflection
-//    falls below the horizon is "no sample" (weight zero, counted in N: still unbiased).
-// Memory per viewer node: (H + 1)(P + 1) float node values, H 32-bit row and H P 16-bit
-// column entries; 3.6 MB for a 1 deg isotropic table (9.1 MB folded RGB payload).
+// Isotropic tables: the table's own cells (theta_i x phi) at each theta_r node j. At a node
+// the table is bilinear in (theta_i, phi) inside each cell, and between theta_r nodes it is
+// linear in theta_r, so the proposal is the table itself: a cell is chosen by the exact
+// integral of f cos over it, theta_i inside it from the exact CDF of (its phi-averaged linear
+// f) x sin cos (closed form, inverted by Newton's method in a bracket), phi from the linear
+// conditional at that theta_i. f cos / pdf is then the same for every sample (the albedo at
+// the viewer, up to rounding): zero variance at any lobe width, measured 0.00 % in the white
+// furnace at m = 0.02 ... 0.5. The node values are the table's (channel mean, read on use):
+// memory is the CDFs only, 5.9 MB for a 1 deg table (9.1 MB folded RGB payload).
+//
+// Half/difference and anisotropic tables: a grid in half-vector space, where a glossy lobe is
+// compact and hardly moves with the viewer (a microfacet lobe is D(h) for every wo):
+//  * Viewer nodes: half/difference tables every degree of theta_o (the half vector reflects
+//    the viewer itself); anisotropic tables the table's theta_r nodes x every 30 deg of phi_o
+//    (the half vector reflects the node's theta_o at the viewer's azimuth).
+//  * Per node, rows in theta_h with edges at (pi/2) (k / H)^2.5 (fine near the normal, where
+//    narrow lobes are: 0.05 deg at k = 16 of 256), columns in phi_h: half/difference grids
+//    measure phi_h from the viewer's azimuth over [0, pi] (the table is even in it; each side
+//    of the plane of incidence gets half the mass), anisotropic ones from the tangent over
+//    [0, 2 pi).
+//  * At every grid node the target g(h) = f(wo, wi) cos(theta_i) 4 (wo . h) (the channel mean
+//    of the interpolated table for wi = reflect(wo, h)): the density of f cos per unit solid
+//    angle of h. Inside a cell the density is bilinear in (1 - cos theta_h, phi_h) between its
+//    four nodes (sampled exactly by inverting the linear marginal and conditional).
+//  * A grid node where the table is zero keeps a floor (1e-2 of its largest neighbour next to
+//    a positive node, else 1e-6 of the node's mean density) wherever wi is above or near the
+//    horizon, so every direction keeps a positive density.
+//  * pdf(wi) = pdf_h(h) / (4 wo . h). A half vector whose reflection falls below the horizon is
+//    "no sample" (weight zero, counted in N: still unbiased; under 0.1 % of samples).
+//  The per-sample spread of f cos / pdf falls with the rows squared: with 256 x 48 cells 0.3 %
+//  for Beckmann m = 0.02, 0.1 % for m = 0.1. Memory per viewer node (H + 1)(P + 1) float node
+//  values and H (P + 1) 32-bit CDF entries: 9.1 MB for a half/difference table, 7.6 MB for a
+//  5 deg anisotropic one.
 //
 // Directions are in the local frame (normal +z, tangent +x).
 #pragma once
@@ -87,6 +100,19 @@ private:
     void build_node(const BrdfTable& table, int k, const Vec3& wo, std::vector<double>& g);
     void place_rows();
     Vec3 node_direction(int k) const;
+    // Isotropic tables: the table's own cells (see the top of the file).
+    void build_cells(const BrdfTable& table);
+    float cell_value(int j, int a, int b) const;  // channel mean of node (theta_i a, theta_r j, phi b)
+    double cell_density(int j, int a, int b, double s, double t) const;
+    double cell_mass(int a, double v00, double v01, double v10, double v11) const;
+    Vec3 sample_cells(const Vec3& wo, const Mixture& m, double u1, double u2) const;
+    double pdf_cells(const Vec3& wo, const Vec3& wi, const Mixture& m) const;
+    bool cells_mode_ = false;
+    const BrdfTable* table_ = nullptr;  // cells mode: the table that owns this sampler
+    int n_ti_ = 0;
+    double step_ti_ = 0;  // radians
+    std::vector<double> sin_ti_, cos_ti_;  // of each theta_i node
+    double row_mass(int a, double t, double st, double ct, double alpha, double beta) const;
 
     bool mirror_ = true;
     // Half vectors reflect the node's own theta_o at the viewer's azimuth (isotropic and
@@ -98,11 +124,11 @@ private:
     double step_to_ = 0, step_po_ = 0;  // radians
     int cells_h_ = 0, cells_p_ = 0;     // H, P
     double dphi_ = 0;                   // column width, radians
-    std::vector<double> omc_;           // 1 - cos(theta_h) at the H + 1 row edges
+    std::vector<double> omc_;           // row edges: 1 - cos(theta_h) (cells mode: sin^2 theta_i)
     std::vector<double> total_;         // per node: its mass (an estimate of the albedo)
     std::vector<float> value_;          // [k][a][b]: g at the nodes (floored), (H+1)(P+1) per node
     std::vector<uint32_t> marginal_;    // [k][a]: inclusive cumulative row units
-    std::vector<uint16_t> conditional_; // [k][a][b]: inclusive cumulative cell units
+    std::vector<uint32_t> conditional_; // [k][a][b]: inclusive cumulative cell units
     size_t bytes_ = 0;
 };
 
