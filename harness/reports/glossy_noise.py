@@ -12,7 +12,11 @@ F = 1 (``microfacet d=beckmann m=M``), in three forms:
   (:func:`harness.reference.table_albedo.table_albedo`);
 * **halfdiff**: the same BRDF as a half/difference table (the default 256 x 128 x 32 nodes);
   expectation: its albedo integrated in numpy over the half vector
-  (:func:`harness.reference.table_albedo.halfdiff_albedo`).
+  (:func:`harness.reference.table_albedo.halfdiff_albedo`);
+* **measured**: a simulated 1 deg measurement of it (2 % noise per value, 0.1 % of the cells
+  missing and filled: :func:`measured_path`), expectation as the table's;
+* **merl**: a synthetic MERL file of it with 2 % noise per bin, converted to a half/difference
+  table on MERL's grid (:func:`merl_path`), expectation as the half/difference table's.
 
 Noise is measured against the *local mean*, not the expectation: the per-pixel rms of
 r / (mean of r over its 1 deg theta_o bin) - 1, r = pixel / expectation, over the pixels with
@@ -32,6 +36,7 @@ Numbers are printed, never asserted (``tests/test_table_sampling.py`` asserts a 
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -62,7 +67,9 @@ GRID = np.linspace(0.0, 90.0, 181)
 BANDS = (0.15, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 #: Roughness values of the report (issue 32's list).
 ROUGHNESS = (0.02, 0.05, 0.1, 0.3, 0.5)
-KINDS = ("model", "table", "halfdiff")
+KINDS = ("model", "table", "halfdiff", "measured", "merl")
+#: Relative measurement noise of the "measured" and "merl" forms (per value, Gaussian).
+MEASUREMENT_NOISE = 0.02
 
 
 def spec_for(m: float) -> str:
@@ -73,11 +80,44 @@ def table_path(step: float = 1.0, spec: str = SPEC) -> Path:
     return tables.tabulated(spec, step=step, fold=True)
 
 
+def merl_path(spec: str) -> Path:
+    """The BRDF of ``spec`` (Beckmann m, F = 1) as a MERL measurement with its noise: a synthetic
+    ``.binary`` (:mod:`harness.tools.merl_synth`, Schlick f0 = 1 so F = 1, no Lambertian part)
+    with every bin times (1 + MEASUREMENT_NOISE N(0, 1)), seed 1, converted by ``brdftool convert``
+    to a half/difference table on MERL's own 90 x 90 x 180 grid."""
+    from harness.tools import merl_synth
+
+    m = float(spec.split("m=")[1].split()[0])
+    out = tables.CACHE_DIR / f"merl-m{m:g}-n{MEASUREMENT_NOISE:g}.brdf"
+    if out.is_file():
+        return out
+    f = merl_synth.synthetic_brdf([0.0, 0.0, 0.0], 1.0, m, 1.0)
+    rng = np.random.default_rng(1)
+    f = f * np.maximum(0.0, 1.0 + MEASUREMENT_NOISE * rng.standard_normal(f.shape))
+    binary = out.with_suffix(f".binary.tmp{os.getpid()}")
+    tmp = out.with_suffix(f".tmp{os.getpid()}")
+    try:
+        merl_synth.write_merl(binary, f)
+        subprocess.run([str(brdftool()), "convert", str(binary), "-o", str(tmp), "--layout", "halfdiff"],
+                       capture_output=True, text=True, check=True)
+        tmp.replace(out)
+    finally:
+        binary.unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
+    return out
+
+
+def measured_path(spec: str) -> Path:
+    """``spec`` as a simulated 1 deg gonioreflectometer measurement (MEASUREMENT_NOISE per value,
+    0.1 % of the cells missing and filled)."""
+    return tables.measured_like(spec, step=1.0, noise=MEASUREMENT_NOISE, missing=0.001)
+
+
 def finish_text(kind: str, samples: int, step: float = 1.0, spec: str = SPEC) -> tuple[str, dict[str, Path]]:
-    if kind == "table":
-        return f'brdf_table {{ "t.brdf" samples {samples} }}', {"t.brdf": table_path(step, spec)}
-    if kind == "halfdiff":
-        return f'brdf_table {{ "t.brdf" samples {samples} }}', {"t.brdf": tables.tabulated_halfdiff(spec)}
+    files = {"table": lambda: table_path(step, spec), "halfdiff": lambda: tables.tabulated_halfdiff(spec),
+             "measured": lambda: measured_path(spec), "merl": lambda: merl_path(spec)}
+    if kind in files:
+        return f'brdf_table {{ "t.brdf" samples {samples} }}', {"t.brdf": files[kind]()}
     return f'brdf_model {{ "{spec}" samples {samples} }}', {}
 
 
@@ -87,8 +127,11 @@ def expectation(kind: str, step: float = 1.0, spec: str = SPEC) -> np.ndarray:
     if kind == "table":
         f, _ = brdf_io.read_brdf(table_path(step, spec), verify=False)
         return table_albedo(f, GRID)[:, 1]
-    if kind == "halfdiff":
-        f, _ = brdf_io.read_brdf(tables.tabulated_halfdiff(spec), verify=False)
+    if kind == "measured":
+        f, _ = brdf_io.read_brdf(measured_path(spec), verify=False)
+        return table_albedo(f, GRID)[:, 1]
+    if kind in ("halfdiff", "merl"):
+        f, _ = brdf_io.read_brdf(tables.tabulated_halfdiff(spec) if kind == "halfdiff" else merl_path(spec), verify=False)
         return halfdiff_albedo(f, GRID)[:, 1]
     out = subprocess.run([str(brdftool()), "albedo", *spec.split(), "--glossy",
                           "--theta", ",".join(f"{t:.6f}" for t in GRID)],
@@ -179,7 +222,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     rows = [measure(kind, n, size, spec=spec_for(float(m)))
             for m in args.m.split(",") for n in counts for kind in kinds]
     print(f"white furnace, Beckmann + Smith, F = 1: model, 1 deg folded table, half/difference table "
-          f"(256 x 128 x 32); {size}x{size}, noise against the local mean over pixels with theta_o < {THETA_MAX:g} deg")
+          f"(256 x 128 x 32), 1 deg measurement and MERL file with {100 * MEASUREMENT_NOISE:g} % noise; "
+          f"{size}x{size}, noise against the local mean over pixels with theta_o < {THETA_MAX:g} deg")
     print(format_bands(rows) if args.bias else format_table(rows))
     return 0
 
