@@ -356,30 +356,54 @@ double TableSampler::pdf(const Vec3& wo, const Vec3& wi) const {
 }
 
 // ---------------------------------------------------------------- isotropic tables: the table's own cells
+//
+// Inside cell (a, b) of node j, with s = (theta_i - theta_a) / step in [0, 1] and t the same
+// along phi, the table is bilinear: f(s, t) from the corners v00 (a, b), v01 (a, b+1),
+// v10 (a+1, b), v11 (a+1, b+1). The proposal density per unit of (theta_i, phi) is
+// f(s, t) L(s), L the linear interpolation of sin theta cos theta between the cell's edges
+// (the solid angle's sin times the cosine), so f cos / pdf = const x sin theta cos theta / L(s):
+// within 1.5e-4 of the constant over a 1 deg cell (exact at the edges and at the pole and
+// grazing cells, where sin theta cos theta is linear in theta). The marginal in s is the
+// quadratic f(s) L(s) (f averaged over t), sampled by Newton's method on its cubic CDF inside
+// [0, 1]; t by the linear conditional at s.
 
-float TableSampler::cell_value(int j, int a, int b) const {
-    const int C = table_->geometry().channels;
-    float s = 0;
-    for (int c = 0; c < C; ++c) s += table_->node(uint32_t(a), uint32_t(j), uint32_t(b), 0, c);
-    return s / float(C);
+namespace {
+// The quadratic q(s) = (A0 + (A1 - A0) s)(c0 + (c1 - c0) s): coefficients and its integral.
+struct Quad {
+    double k0, k1, k2;
+    double at(double s) const { return k0 + s * (k1 + s * k2); }
+    double integral(double s) const { return s * (k0 + s * (0.5 * k1 + s * k2 / 3.0)); }
+};
+Quad row_quad(double A0, double A1, double c0, double c1) {
+    return {A0 * c0, A0 * (c1 - c0) + c0 * (A1 - A0), (A1 - A0) * (c1 - c0)};
+}
+}  // namespace
+
+const float* TableSampler::row(int j, int a) const {
+    const uint32_t idx[4] = {uint32_t(a), uint32_t(j), 0, 0};
+    return table_->values().data() + table_->offset(idx);
 }
 
-// Integral over theta in [ta, t] of (alpha + beta (theta - ta)) sin theta cos theta: the mass of
-// a cell's row of the table's bilinear values times the cosine and the solid angle's sin, per
-// unit of phi. ta = a step (its sine and cosine kept per row), t given with its sine and
-// cosine; the differences of cosines and sines as products, so narrow cells keep their digits.
-double TableSampler::row_mass(int a, double t, double st, double ct, double alpha, double beta) const {
-    const double sa = sin_ti_[a], ca = cos_ti_[a];
-    const double s_sum = st * ca + ct * sa, s_diff = st * ca - ct * sa, c_sum = ct * ca - st * sa;
-    const double dcos = 2.0 * s_sum * s_diff;  // cos 2ta - cos 2t
-    const double dsin = 2.0 * c_sum * s_diff;  // sin 2t - sin 2ta
-    return 0.25 * alpha * dcos + 0.5 * beta * (-0.5 * (t - a * step_ti_) * (ct * ct - st * st) + 0.25 * dsin);
+void TableSampler::corners(int j, int a, int b, double v[4]) const {
+    const int C = channels_;
+    const float* lo = row(j, a) + size_t(b) * C;
+    const float* hi = row(j, a + 1) + size_t(b) * C;
+    if (C == 1) {
+        v[0] = lo[0], v[1] = lo[1], v[2] = hi[0], v[3] = hi[1];
+        return;
+    }
+    v[0] = (double(lo[0]) + lo[1] + lo[2]) / 3.0;
+    v[1] = (double(lo[3]) + lo[4] + lo[5]) / 3.0;
+    v[2] = (double(hi[0]) + hi[1] + hi[2]) / 3.0;
+    v[3] = (double(hi[3]) + hi[4] + hi[5]) / 3.0;
 }
 
 void TableSampler::build_cells(const BrdfTable& table) {
     cells_mode_ = true;
+    node_frame_ = false;  // the cells are the table's own: no half vectors
     table_ = &table;
     const TableGeometry& g = table.geometry();
+    channels_ = g.channels;
     n_ti_ = int(g.n[0]);
     n_to_ = int(g.n[1]);
     n_po_ = 1;
@@ -389,49 +413,42 @@ void TableSampler::build_cells(const BrdfTable& table) {
     cells_p_ = int(g.n[2]) - 1;
     dphi_ = g.step_deg(2) * kDegree;
     const int H = cells_h_, P = cells_p_;
-    sin_ti_.resize(n_ti_);
-    cos_ti_.resize(n_ti_);
-    for (int a = 0; a < n_ti_; ++a) {
-        sin_ti_[a] = std::sin(a * step_ti_);
-        cos_ti_[a] = std::cos(a * step_ti_);
-    }
+    sincos_.resize(n_ti_);
+    for (int a = 0; a < n_ti_; ++a) sincos_[a] = 0.5 * std::sin(2.0 * a * step_ti_);
+    sincos_[n_ti_ - 1] = 0.0;  // exactly grazing
     total_.assign(n_to_, 0.0);
     marginal_.assign(size_t(n_to_) * H, 0);
     conditional_.assign(size_t(n_to_) * H * P, 0);
-    const double cell_units = kRowUnits;
-    std::vector<float> v(size_t(n_ti_) * (P + 1));
-    std::vector<double> w(P), row(H);
+    std::vector<double> w(P), rows(H);
     for (int j = 0; j < n_to_; ++j) {
-        for (int a = 0; a < n_ti_; ++a)
-            for (int b = 0; b <= P; ++b) v[size_t(a) * (P + 1) + b] = cell_value(j, a, b);
         double node_total = 0;
         for (int a = 0; a < H; ++a) {
-            const float* lo = &v[size_t(a) * (P + 1)];
-            const float* hi = lo + (P + 1);
             double row_total = 0;
-            for (int b = 0; b < P; ++b)
-                row_total += (w[b] = cell_mass(a, lo[b], lo[b + 1], hi[b], hi[b + 1]));
+            for (int b = 0; b < P; ++b) {
+                double v[4];
+                corners(j, a, b, v);
+                row_total += (w[b] = cell_mass(a, v));
+            }
             uint32_t* cdf = &conditional_[(size_t(j) * H + a) * P];
             uint32_t acc = 0;
-            for (int b = 0; b < P; ++b) cdf[b] = uint32_t(acc += units(w[b], row_total, cell_units));
-            row[a] = row_total;
+            for (int b = 0; b < P; ++b) cdf[b] = (acc += units(w[b], row_total, kRowUnits));
+            rows[a] = row_total;
             node_total += row_total;
         }
         total_[j] = node_total;
         uint32_t acc = 0;
-        for (int a = 0; a < H; ++a) marginal_[size_t(j) * H + a] = (acc += units(row[a], node_total, kRowUnits));
+        for (int a = 0; a < H; ++a) marginal_[size_t(j) * H + a] = (acc += units(rows[a], node_total, kRowUnits));
     }
-    bytes_ = sizeof(*this) + (total_.capacity() + sin_ti_.capacity() + cos_ti_.capacity()) * sizeof(double) +
+    bytes_ = sizeof(*this) + (total_.capacity() + sincos_.capacity()) * sizeof(double) +
              marginal_.capacity() * sizeof(uint32_t) + conditional_.capacity() * sizeof(uint32_t);
     account_add(bytes_);
 }
 
-double TableSampler::cell_mass(int a, double v00, double v01, double v10, double v11) const {
-    // The integral of f cos over the cell (one side of the plane), f bilinear in (theta, phi):
-    // the row mass of the phi-averaged edges.
-    const double ta = a * step_ti_;
-    const double alpha = 0.5 * (v00 + v01), beta = (0.5 * (v10 + v11) - alpha) / step_ti_;
-    return dphi_ * row_mass(a, ta + step_ti_, sin_ti_[a + 1], cos_ti_[a + 1], alpha, beta);
+double TableSampler::cell_mass(int a, const double v[4]) const {
+    // The proposal's integral over the cell (one side of the plane), per unit of s and t
+    // times step x dphi: the quadratic's integral over [0, 1] (f averaged over t).
+    const Quad q = row_quad(0.5 * (v[0] + v[1]), 0.5 * (v[2] + v[3]), sincos_[a], sincos_[a + 1]);
+    return q.integral(1.0) * step_ti_ * dphi_;
 }
 
 double TableSampler::cell_density(int j, int a, int b, double s, double t) const {
@@ -440,12 +457,12 @@ double TableSampler::cell_density(int j, int a, int b, double s, double t) const
     const uint32_t q_a = rows[a] - (a ? rows[a - 1] : 0u);
     if (q_a == 0) return 0.0;
     const uint32_t* cells = &conditional_[(size_t(j) * H + a) * P];
-    const uint32_t r_b = uint32_t(cells[b]) - (b ? cells[b - 1] : 0u);
+    const uint32_t r_b = cells[b] - (b ? cells[b - 1] : 0u);
     if (r_b == 0) return 0.0;
-    const double v00 = cell_value(j, a, b), v01 = cell_value(j, a, b + 1);
-    const double v10 = cell_value(j, a + 1, b), v11 = cell_value(j, a + 1, b + 1);
-    const double here = lerp(lerp(v00, v01, t), lerp(v10, v11, t), s);
-    return (double(q_a) / rows[H - 1]) * (double(r_b) / cells[P - 1]) * here / cell_mass(a, v00, v01, v10, v11);
+    double v[4];
+    corners(j, a, b, v);
+    const double here = lerp(lerp(v[0], v[1], t), lerp(v[2], v[3], t), s);
+    return (double(q_a) / rows[H - 1]) * (double(r_b) / cells[P - 1]) * here / cell_mass(a, v);
 }
 
 Vec3 TableSampler::sample_cells(const Vec3& wo, const Mixture& m, double u1, double u2) const {
@@ -462,32 +479,25 @@ Vec3 TableSampler::sample_cells(const Vec3& wo, const Mixture& m, double u1, dou
     v = std::clamp(plus ? 2.0 * v - 1.0 : 1.0 - 2.0 * v, 0.0, kOneMinusEps);
     const int b = pick(&conditional_[(size_t(j) * H + a) * P], P, v, &ft);
     if (b >= P) return {};
-    const double v00 = cell_value(j, a, b), v01 = cell_value(j, a, b + 1);
-    const double v10 = cell_value(j, a + 1, b), v11 = cell_value(j, a + 1, b + 1);
-    // theta by the row's exact CDF (row_mass).
-    const double ta = a * step_ti_, tb = ta + step_ti_;
-    const double alpha = 0.5 * (v00 + v01), beta = (0.5 * (v10 + v11) - alpha) / step_ti_;
-    const double target = fs * row_mass(a, tb, sin_ti_[a + 1], cos_ti_[a + 1], alpha, beta);
-    // Start from the linear density through the ends' values (exact when sin cos is linear
-    // over the cell: within 1e-4 of a 1 deg cell), then Newton's method inside the bracket.
-    const double m_a = alpha * sin_ti_[a] * cos_ti_[a], m_b = (alpha + beta * step_ti_) * sin_ti_[a + 1] * cos_ti_[a + 1];
-    double lo = ta, hi = tb, th = ta + step_ti_ * sample_linear(fs, std::max(m_a, 0.0), std::max(m_b, 0.0));
-    double st = std::sin(th), ct = std::cos(th);
+    double c[4];
+    corners(j, a, b, c);
+    // s by the quadratic marginal: Newton's method on its CDF, kept inside a bracket, from the
+    // linear density through the ends' values.
+    const Quad q = row_quad(0.5 * (c[0] + c[1]), 0.5 * (c[2] + c[3]), sincos_[a], sincos_[a + 1]);
+    const double target = fs * q.integral(1.0);
+    double lo = 0, hi = 1, s = sample_linear(fs, std::max(q.at(0), 0.0), std::max(q.at(1), 0.0));
     for (int it = 0; it < 20; ++it) {
-        const double g = row_mass(a, th, st, ct, alpha, beta) - target;
-        if (g > 0) hi = th; else lo = th;
-        const double dg = (alpha + beta * (th - ta)) * st * ct;
-        double next = dg > 0 ? th - g / dg : 0.5 * (lo + hi);
+        const double g = q.integral(s) - target, dg = q.at(s);
+        if (g > 0) hi = s; else lo = s;
+        double next = dg > 0 ? s - g / dg : 0.5 * (lo + hi);
         if (!(next >= lo && next <= hi)) next = 0.5 * (lo + hi);
-        const bool done = std::abs(next - th) <= 1e-14 * step_ti_;
-        th = next;
-        st = std::sin(th);
-        ct = std::cos(th);
+        const bool done = std::abs(next - s) <= 1e-13;
+        s = next;
         if (done) break;
     }
-    const double s = std::clamp((th - ta) / step_ti_, 0.0, 1.0);
-    const double t = sample_linear(ft, lerp(v00, v10, s), lerp(v01, v11, s));
-    const double cos_i = ct, sin_i = st;
+    const double t = sample_linear(ft, lerp(c[0], c[2], s), lerp(c[1], c[3], s));
+    const double th = (a + s) * step_ti_;
+    const double cos_i = std::cos(th), sin_i = std::sin(th);
     if (!(cos_i > 0)) return {};  // exactly grazing: a set of measure zero
     const double phi = std::min((b + t) * dphi_, kPi);
     // phi = phi_o - phi_i (the table's phi_r - phi_i): wi's azimuth is phi_o -+ phi.
@@ -498,21 +508,24 @@ Vec3 TableSampler::sample_cells(const Vec3& wo, const Mixture& m, double u1, dou
 }
 
 double TableSampler::pdf_cells(const Vec3& wo, const Vec3& wi, const Mixture& m) const {
-    const double cos_i = std::min(wi.z, 1.0);
-    const double th = std::atan2(std::hypot(wi.x, wi.y), wi.z);
-    const int a = std::clamp(int(th / step_ti_), 0, cells_h_ - 1);
-    const double s = std::clamp(th / step_ti_ - a, 0.0, 1.0);
+    const double sin_i = std::hypot(wi.x, wi.y);
+    const double x = std::atan2(sin_i, wi.z) / step_ti_;
+    const int a = std::clamp(int(x), 0, cells_h_ - 1);
+    const double s = std::clamp(x - a, 0.0, 1.0);
     // phi between the projections of wo and wi (0 at a pole, where nothing depends on it).
-    const double so = std::hypot(wo.x, wo.y), si = std::hypot(wi.x, wi.y);
-    const double cphi = so > 0 && si > 0 ? std::clamp((wo.x * wi.x + wo.y * wi.y) / (so * si), -1.0, 1.0) : 1.0;
-    const double x = std::acos(cphi) / dphi_;
-    const int b = std::clamp(int(x), 0, cells_p_ - 1);
-    const double t = std::clamp(x - b, 0.0, 1.0);
+    const double so = std::hypot(wo.x, wo.y);
+    const double cphi = so > 0 && sin_i > 0 ? std::clamp((wo.x * wi.x + wo.y * wi.y) / (so * sin_i), -1.0, 1.0) : 1.0;
+    const double y = std::acos(cphi) / dphi_;
+    const int b = std::clamp(int(y), 0, cells_p_ - 1);
+    const double t = std::clamp(y - b, 0.0, 1.0);
     double p = 0;
     for (int i = 0; i < m.count; ++i) p += m.p[i] * cell_density(m.node[i], a, b, s, t);
-    // cell_density is per unit of the cell's f cos mass (one side); either side has 1/2:
-    // p(w) = P(cell) f_bilinear cos / (2 mass).
-    return 0.5 * p * cos_i;
+    // Per unit of (theta_i, phi): P(cell) f L(s) / mass; per solid angle / sin theta_i; either
+    // side of the plane 1/2. At the pole (cell 0, where L(s) = c1 s) L / sin theta_i tends to
+    // c1 / step.
+    const double L = lerp(sincos_[a], sincos_[a + 1], s);
+    const double ratio = sin_i > 0 ? L / sin_i : sincos_[1] / step_ti_;
+    return 0.5 * p * ratio;
 }
 
 // ---------------------------------------------------------------- the table's sampling

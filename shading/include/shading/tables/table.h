@@ -280,6 +280,7 @@ public:
     size_t bytes_used() const;
 
 private:
+    friend class TableSampler;  // reads the stored rows (offset) of the nodes it samples
     AxisPos locate(int axis, double deg, Interp interp) const;
     // locate() of a non-periodic axis (theta, or iso phi) at deg already in its range.
     AxisPos locate_in_range(int axis, double deg, Interp interp) const;
