@@ -156,3 +156,26 @@ TEST(Fresnel, ConductorRealFormMirrorAndTotalReflection) {
     Rgb f = fresnel_conductor(0.7, Rgb(0.2, 0.4, 1.4), Rgb(3.4, 2.4, 1.8));
     EXPECT_NEAR(f.b, double(conductor_complex(0.7L, 1.4L, 1.8L)), 1e-14);
 }
+
+TEST(Fresnel, ConductorRgbIsEachChannelBitForBit) {
+    // The per-channel form evaluates two channels in one SSE2 register: the same bits as the
+    // scalar function on each channel, on both branches (n^2 - k^2 - sin^2 of either sign),
+    // the dielectric (k = 0) and no-interface channels, and cosines outside [0, 1].
+    const double ns[] = {0.0, 0.05, 0.2, 0.4, 1.0, 1.4, 1.5, 3.0, 20.0};
+    const double ks[] = {0.0, 1e-9, 0.3, 1.8, 2.4, 3.4, 10.0};
+    int checked = 0;
+    for (double n0 : ns)
+        for (double k0 : ks)
+            for (double n1 : ns)
+                for (double k1 : ks)
+                    for (int i = -2; i <= 202; ++i) {
+                        const double c = i / 200.0 + (i % 7) * 1e-5;
+                        const Rgb n(n0, n1, n0 + n1), k(k0, k1, k0 * 0.5);
+                        const Rgb f = fresnel_conductor(c, n, k);
+                        ASSERT_EQ(f.r, fresnel_conductor(c, n.r, k.r)) << n0 << " " << k0 << " " << c;
+                        ASSERT_EQ(f.g, fresnel_conductor(c, n.g, k.g)) << n1 << " " << k1 << " " << c;
+                        ASSERT_EQ(f.b, fresnel_conductor(c, n.b, k.b)) << c;
+                        ++checked;
+                    }
+    EXPECT_GT(checked, 600000);
+}

@@ -292,3 +292,30 @@ TEST(MicrofacetG, SmithLambdaTableMatchesClosedForm) {
         }
     }
 }
+
+// Beckmann's Lambda is returned as 0 where a = cot(theta) / m > 6 (a fast exit): G and G1 keep
+// the closed form's bits, for every angle (grazing to the normal) and roughness.
+TEST(MicrofacetG, BeckmannNegligibleLambdaKeepsGBits) {
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int zeroed = 0;
+    for (double m : {0.01, 0.05, 0.2, 0.5, 1.0, 3.0}) {
+        NormalDistribution d(DKind::Beckmann, m);
+        for (int i = 0; i < 20000; ++i) {
+            // theta spread so that a = cot(theta) / m covers 0 .. 40 densely around 6
+            const double a = 40.0 * u(rng) * u(rng);
+            const double th = std::atan2(1.0, a * m);
+            const Vec3 wo = spherical_direction(th, 6.0 * u(rng)), wi = spherical_direction(deg(89.9) * u(rng), 0.3);
+            const double lo = smith_lambda_beckmann(wo, m), li = smith_lambda_beckmann(wi, m);
+            const double fo = d.smith_lambda(wo), fi = d.smith_lambda(wi);
+            if (fo != lo) {
+                ASSERT_EQ(fo, 0.0);
+                ++zeroed;
+            }
+            ASSERT_EQ(g1_smith(fo), g1_smith(lo)) << m << " " << th;
+            ASSERT_EQ(g_smith(fo, fi), g_smith(lo, li)) << m << " " << th;
+            ASSERT_EQ(g_smith(fi, fo), g_smith(li, lo)) << m << " " << th;
+        }
+    }
+    EXPECT_GT(zeroed, 10000);
+}

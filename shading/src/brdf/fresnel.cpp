@@ -4,6 +4,10 @@
 #include <algorithm>
 #include <cmath>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace shading {
 
 double fresnel_dielectric(double cos_d, double eta) {
@@ -85,7 +89,57 @@ double fresnel_conductor(double cos_d, double n, double k) {
     return conductor_reflectance(cos_d, ConductorIndex(n, k));
 }
 
+namespace {
+#if defined(__SSE2__)
+// (m ? a : b) lane by lane, m all ones or all zeros per lane.
+inline __m128d select(__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); }
+inline __m128d sq(__m128d v) { return _mm_mul_pd(v, v); }
+
+// conductor_reflectance for two channels (k != 0 in both) in the two lanes of one SSE2
+// register: the same operations in the same order as the scalar form, whose branches become
+// lane selects (each lane keeps the value its branch computes), so each lane has the scalar
+// form's bits. Halves the divisions and square roots of two channels.
+inline void conductor_reflectance2(double c, double n0, double k0, double n1, double k1, double* r0, double* r1) {
+    c = std::clamp(c, 0.0, 1.0);
+    const double c2 = c * c, s2 = 1.0 - c2;
+    const __m128d n = _mm_set_pd(n1, n0), k = _mm_set_pd(k1, k0);
+    const __m128d vc = _mm_set1_pd(c), vc2 = _mm_set1_pd(c2), vs2 = _mm_set1_pd(s2);
+    const __m128d zero = _mm_setzero_pd(), half = _mm_set1_pd(0.5), one = _mm_set1_pd(1.0);
+    const __m128d re = _mm_sub_pd(_mm_mul_pd(n, n), _mm_mul_pd(k, k));     // n^2 - k^2
+    const __m128d im2 = sq(_mm_mul_pd(_mm_mul_pd(_mm_set1_pd(2.0), n), k));  // (2 n k)^2
+    const __m128d x = _mm_sub_pd(re, vs2);
+    const __m128d t = _mm_sqrt_pd(_mm_add_pd(_mm_mul_pd(x, x), im2));
+    const __m128d xpos = _mm_cmpge_pd(x, zero);
+    const __m128d pa2 = _mm_mul_pd(half, _mm_add_pd(t, x));  // x >= 0: a^2 directly
+    const __m128d nb2 = _mm_mul_pd(half, _mm_sub_pd(t, x));  // x < 0: b^2 directly
+    // The other one from a^2 b^2 = im2 / 4: one division by whichever was computed directly.
+    const __m128d q = _mm_div_pd(_mm_mul_pd(_mm_set1_pd(0.25), im2), select(xpos, pa2, nb2));
+    const __m128d a2 = select(xpos, pa2, q);
+    const __m128d b2 = select(xpos, _mm_and_pd(_mm_cmpgt_pd(pa2, zero), q), nb2);
+    const __m128d a = _mm_sqrt_pd(a2);
+    const __m128d den_s = _mm_add_pd(sq(_mm_add_pd(a, vc)), b2);
+    const __m128d rs = _mm_div_pd(_mm_add_pd(sq(_mm_sub_pd(a, vc)), b2), den_s);
+    const __m128d ac = _mm_mul_pd(a, vc), b2c2 = _mm_mul_pd(b2, vc2);
+    const __m128d den_p = _mm_add_pd(sq(_mm_add_pd(ac, vs2)), b2c2);
+    const __m128d rp_full = _mm_div_pd(_mm_mul_pd(rs, _mm_add_pd(sq(_mm_sub_pd(ac, vs2)), b2c2)), den_p);
+    const __m128d rp = select(_mm_cmpgt_pd(den_p, zero), rp_full, rs);
+    const __m128d r = _mm_min_pd(_mm_mul_pd(half, _mm_add_pd(rs, rp)), one);  // min(1, .): NaN gives 1 too
+    const __m128d out = select(_mm_cmpgt_pd(den_s, zero), r, one);             // !(den_s > 0): 1
+    *r0 = _mm_cvtsd_f64(out);
+    *r1 = _mm_cvtsd_f64(_mm_unpackhi_pd(out, out));
+}
+#endif
+}  // namespace
+
 Rgb fresnel_conductor(double cos_d, const Rgb& n, const Rgb& k) {
+#if defined(__SSE2__)
+    if (k.r != 0.0 && k.g != 0.0) {  // then neither is the "no interface" n + ik == 1
+        Rgb f;
+        conductor_reflectance2(cos_d, n.r, k.r, n.g, k.g, &f.r, &f.g);
+        f.b = fresnel_conductor(cos_d, n.b, k.b);
+        return f;
+    }
+#endif
     return {fresnel_conductor(cos_d, n.r, k.r), fresnel_conductor(cos_d, n.g, k.g),
             fresnel_conductor(cos_d, n.b, k.b)};
 }
