@@ -424,6 +424,37 @@ std::shared_ptr<const BrdfTable> make_halfdiff(const std::string& spec, uint32_t
 }
 }  // namespace
 
+namespace {
+// The white-furnace estimator of the table's albedo at wo with its own sampler and with the
+// generic mixture (Brdf::sample, for scale) from the same n uniform pairs: sums of the
+// weights and of the green channel's squares.
+struct Estimate {
+    int n;
+    Rgb sum, sum_generic;
+    double sq = 0, sq_generic = 0;
+};
+Estimate estimate_with_generic(const BrdfTable& t, const Vec3& wo, uint64_t seed, int n) {
+    Rng rng(seed);
+    Estimate e{n, Rgb(), Rgb()};
+    for (int s = 0; s < n; ++s) {
+        const double u1 = rng(), u2 = rng();
+        const Vec3 wi = t.sample(wo, u1, u2);
+        if (wi.z > 0) {
+            const Rgb v = t.f(wo, wi) * (wi.z / t.pdf(wo, wi));
+            e.sum += v;
+            e.sq += sqr(v.g);
+        }
+        const Vec3 wg = t.Brdf::sample(wo, u1, u2);
+        if (wg.z > 0) {
+            const Rgb v = t.f(wo, wg) * (wg.z / t.Brdf::pdf(wo, wg));
+            e.sum_generic += v;
+            e.sq_generic += sqr(v.g);
+        }
+    }
+    return e;
+}
+}  // namespace
+
 TEST(TableSampler, HalfDiffTableSampledFromItsOwnValues) {
     // A narrow lobe (m = 0.05) in the layout made for it: the sampler works on a 1 deg grid of
     // the table's values; sample() and pdf() agree (chi-square), every sample is valid, and the
@@ -440,25 +471,10 @@ TEST(TableSampler, HalfDiffTableSampledFromItsOwnValues) {
         EXPECT_GT(r.valid_fraction, 0.999);
         EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 2e-3);
 
-        Rng rng(seed++);
-        const int n = 100000;
-        Rgb sum, sum_generic;
-        double sq = 0, sq_generic = 0;
-        for (int s = 0; s < n; ++s) {
-            const double u1 = rng(), u2 = rng();
-            const Vec3 wi = t->sample(wo, u1, u2);
-            if (wi.z > 0) {
-                const Rgb v = t->f(wo, wi) * (wi.z / t->pdf(wo, wi));
-                sum += v;
-                sq += sqr(v.g);
-            }
-            const Vec3 wg = t->Brdf::sample(wo, u1, u2);  // the generic mixture, for scale
-            if (wg.z > 0) {
-                const Rgb v = t->f(wo, wg) * (wg.z / t->Brdf::pdf(wo, wg));
-                sum_generic += v;
-                sq_generic += sqr(v.g);
-            }
-        }
+        const Estimate e = estimate_with_generic(*t, wo, seed++, 100000);
+        const int n = e.n;
+        const Rgb sum = e.sum, sum_generic = e.sum_generic;
+        const double sq = e.sq, sq_generic = e.sq_generic;
         const Rgb want = midpoint_albedo(*t, wo);
         EXPECT_NEAR((sum / n).g / want.g, 1.0, 5e-3) << "theta_o " << th;
         EXPECT_NEAR((sum_generic / n).g / want.g, 1.0, 3e-2) << "theta_o " << th;
@@ -521,25 +537,10 @@ TEST(TableSampler, AnisotropicTableSampledFromItsOwnValues) {
         EXPECT_GT(r.valid_fraction, 0.995);
         EXPECT_NEAR(r.pdf_mass, r.valid_fraction, 3e-3);
 
-        Rng rng(seed++);
-        const int n = 100000;
-        Rgb sum, sum_generic;
-        double sq = 0, sq_generic = 0;
-        for (int s = 0; s < n; ++s) {
-            const double u1 = rng(), u2 = rng();
-            const Vec3 wi = t->sample(wo, u1, u2);
-            if (wi.z > 0) {
-                const Rgb v = t->f(wo, wi) * (wi.z / t->pdf(wo, wi));
-                sum += v;
-                sq += sqr(v.g);
-            }
-            const Vec3 wg = t->Brdf::sample(wo, u1, u2);
-            if (wg.z > 0) {
-                const Rgb v = t->f(wo, wg) * (wg.z / t->Brdf::pdf(wo, wg));
-                sum_generic += v;
-                sq_generic += sqr(v.g);
-            }
-        }
+        const Estimate e = estimate_with_generic(*t, wo, seed++, 100000);
+        const int n = e.n;
+        const Rgb sum = e.sum, sum_generic = e.sum_generic;
+        const double sq = e.sq, sq_generic = e.sq_generic;
         const Rgb want = midpoint_albedo(*t, wo);
         EXPECT_NEAR((sum / n).g / want.g, 1.0, 5e-3) << "theta_o " << th;
         const double var = sq / n - sqr((sum / n).g), var_generic = sq_generic / n - sqr((sum_generic / n).g);

@@ -21,12 +21,12 @@ void account_add(size_t bytes) {
     }
 }
 
-// The half-vector grid: rows x columns per viewer node. Isotropic columns cover [0, pi],
+// The half-vector grid: rows x columns per viewer node. Half/difference columns cover [0, pi],
 // anisotropic ones [0, 2 pi) (and their viewer nodes are 12 times as many, so fewer rows).
 // Measured (table_sampler.h): the per-sample spread of f cos / pdf falls with the rows
 // squared (bilinear cells), hardly with the columns; 256 rows warped by 2.5 resolve a
 // Beckmann m = 0.02 lobe to 0.3-0.5 % per sample.
-constexpr int kRowsIso = 256, kColsIso = 48;
+constexpr int kRowsHalfDiff = 256, kColsHalfDiff = 48;
 constexpr int kRowsAniso = 64, kColsAniso = 64;
 constexpr double kRowWarp = 2.5;
 constexpr int kAzimuthNodesAniso = 12;
@@ -94,8 +94,8 @@ TableSampler::TableSampler(const BrdfTable& table) {
     n_po_ = mirror_ ? 1 : kAzimuthNodesAniso;
     step_to_ = (kPi / 2) / (n_to_ - 1);
     step_po_ = 2 * kPi / n_po_;
-    cells_h_ = mirror_ ? kRowsIso : kRowsAniso;
-    cells_p_ = mirror_ ? kColsIso : kColsAniso;
+    cells_h_ = mirror_ ? kRowsHalfDiff : kRowsAniso;
+    cells_p_ = mirror_ ? kColsHalfDiff : kColsAniso;
     dphi_ = (mirror_ ? kPi : 2 * kPi) / cells_p_;
     node_frame_ = g.layout != TableLayout::HalfDiff;
     place_rows();
