@@ -227,8 +227,8 @@ for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
     if _threads == 1:
         row(f"{_group}: brdf_table 1 deg nearest / stock phong", grid_side("phong", "stock"),
             grid_side("table", lookup=" interpolate 0"), **_kw)
-        row(f"{_group}: brdf_table halfdiff trilinear / stock phong", grid_side("phong", "stock"),
-            grid_side("halfdiff"), note="(the narrow-lobe layout's lookup)", goal=1.05, **_kw)
+    row(f"{_group}: brdf_table halfdiff trilinear / stock phong", grid_side("phong", "stock"),
+        grid_side("halfdiff"), note="(the narrow-lobe layout's lookup)", goal=1.05, **_kw)
     row(f"{_group}: brdf_model Beckmann conductor / stock phong", grid_side("phong", "stock"), grid_side("model"),
         goal=1.25, **_kw)
 
