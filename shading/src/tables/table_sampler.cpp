@@ -1,4 +1,5 @@
-// Importance sampling of tables from their own data, in half-vector space (table_sampler.h).
+// Importance sampling of tables from their own data: their own cells (isotropic tables) or a
+// grid over the half vector (half/difference and anisotropic tables); table_sampler.h.
 #include "shading/tables/table_sampler.h"
 
 #include <algorithm>
@@ -48,7 +49,7 @@ constexpr double kFloorHorizon = -0.15;
 // rounding gives a cell of negligible weight at most 2^-30 of its row. (With 16-bit columns,
 // one unit in 65535 per cell, the empty cells of a row holding a narrow lobe drew 0.3 % of the
 // samples, each a zero weight: 5 % of relative spread per sample.)
-constexpr double kRowUnits = double(1u << 30);
+constexpr double kCdfUnits = double(1u << 30);
 
 // Units of a positive weight: its rounded share, at least 1.
 uint32_t units(double w, double total, double scale) {
@@ -77,6 +78,16 @@ int pick(const T* cdf, int n, double u, double* frac) {
     return i;
 }
 
+// Either side of the viewer's plane of incidence with probability 1/2, v folded so that the
+// map stays continuous: v = 1/2 is phi = 0 on both sides, v = 0 and 1 are phi = -pi and pi,
+// the same half plane (stratified u keep their spacing). Returns the side (true: +phi) and
+// stretches v back to [0, 1).
+bool fold_side(double* v) {
+    const bool plus = *v >= 0.5;
+    *v = std::clamp(plus ? 2.0 * *v - 1.0 : 1.0 - 2.0 * *v, 0.0, kOneMinusEps);
+    return plus;
+}
+
 }  // namespace
 
 TableSampler::TableSampler(const BrdfTable& table) {
@@ -86,18 +97,13 @@ TableSampler::TableSampler(const BrdfTable& table) {
         return;
     }
     mirror_ = g.layout != TableLayout::Anisotropic;
-    switch (g.layout) {
-        case TableLayout::Isotropic: n_to_ = int(g.n[1]); break;
-        case TableLayout::HalfDiff: n_to_ = 91; break;
-        case TableLayout::Anisotropic: n_to_ = int(g.n[2]); break;
-    }
+    n_to_ = mirror_ ? 91 : int(g.n[2]);  // half/difference: every degree; anisotropic: theta_r nodes
     n_po_ = mirror_ ? 1 : kAzimuthNodesAniso;
     step_to_ = (kPi / 2) / (n_to_ - 1);
     step_po_ = 2 * kPi / n_po_;
     cells_h_ = mirror_ ? kRowsHalfDiff : kRowsAniso;
     cells_p_ = mirror_ ? kColsHalfDiff : kColsAniso;
     dphi_ = (mirror_ ? kPi : 2 * kPi) / cells_p_;
-    node_frame_ = g.layout != TableLayout::HalfDiff;
     place_rows();
     const int nodes = n_to_ * n_po_;
     total_.assign(nodes, 0.0);
@@ -182,21 +188,48 @@ void TableSampler::build_node(const BrdfTable& table, int k, const Vec3& wo, std
         val[i] = float(g[i]);
         g[i] = double(val[i]);  // the masses below are those of the stored values
     }
-    const double cell_units = kRowUnits;
-    std::vector<double> row(H), w(P);
+    std::vector<double> w(size_t(H) * P);
+    for (int a = 0; a < H; ++a)
+        for (int b = 0; b < P; ++b) w[size_t(a) * P + b] = mass(a, b);
+    fill_cdfs(k, w);
+}
+
+void TableSampler::fill_cdfs(int k, const std::vector<double>& mass) {
+    const int H = cells_h_, P = cells_p_;
+    std::vector<double> rows(H);
     double node_total = 0;
     for (int a = 0; a < H; ++a) {
+        const double* w = &mass[size_t(a) * P];
         double row_total = 0;
-        for (int b = 0; b < P; ++b) row_total += (w[b] = mass(a, b));
+        for (int b = 0; b < P; ++b) row_total += w[b];
         uint32_t* cdf = &conditional_[(size_t(k) * H + a) * P];
         uint32_t acc = 0;
-        for (int b = 0; b < P; ++b) cdf[b] = uint32_t(acc += units(w[b], row_total, cell_units));
-        row[a] = row_total;
+        for (int b = 0; b < P; ++b) cdf[b] = (acc += units(w[b], row_total, kCdfUnits));
+        rows[a] = row_total;
         node_total += row_total;
     }
     total_[k] = node_total;
     uint32_t acc = 0;
-    for (int a = 0; a < H; ++a) marginal_[size_t(k) * H + a] = (acc += units(row[a], node_total, kRowUnits));
+    for (int a = 0; a < H; ++a) marginal_[size_t(k) * H + a] = (acc += units(rows[a], node_total, kCdfUnits));
+}
+
+double TableSampler::cell_probability(int k, int a, int b) const {
+    const int H = cells_h_, P = cells_p_;
+    const uint32_t* rows = &marginal_[size_t(k) * H];
+    const uint32_t q_a = rows[a] - (a ? rows[a - 1] : 0u);
+    if (q_a == 0) return 0.0;
+    const uint32_t* cells = &conditional_[(size_t(k) * H + a) * P];
+    const uint32_t r_b = cells[b] - (b ? cells[b - 1] : 0u);
+    return (double(q_a) / rows[H - 1]) * (double(r_b) / cells[P - 1]);
+}
+
+int TableSampler::choose_node(const Mixture& m, double u2, double* v) const {
+    // u2 split at the nodes' probabilities and stretched back to [0, 1).
+    int i = 0;
+    double x = std::clamp(u2, 0.0, kOneMinusEps);
+    while (i < m.count - 1 && x >= m.p[i]) x -= m.p[i++];
+    *v = std::clamp(x / m.p[i], 0.0, kOneMinusEps);
+    return i;
 }
 
 TableSampler::~TableSampler() { g_live_bytes.fetch_sub(bytes_); }
@@ -229,7 +262,7 @@ bool TableSampler::mixture(const Vec3& wo, Mixture* m) const {
         const double p = wts[i] * total_[nodes[i]];
         if (!(p > 0)) continue;
         Vec3 ref = wo;
-        if (node_frame_) {  // the node's theta_o at the viewer's azimuth
+        if (!mirror_) {  // anisotropic grids: the node's theta_o at the viewer's azimuth
             const double th = std::min((nodes[i] / n_po_) * step_to_, kPi / 2 - 1e-3);
             ref = Vec3(std::sin(th) * co, std::sin(th) * sn, std::cos(th));
         }
@@ -244,18 +277,14 @@ bool TableSampler::mixture(const Vec3& wo, Mixture* m) const {
 }
 
 double TableSampler::node_density(int k, const HPos& pos) const {
-    const int H = cells_h_, P = cells_p_, W = P + 1;
-    const uint32_t* rows = &marginal_[size_t(k) * H];
-    const uint32_t q_a = rows[pos.a] - (pos.a ? rows[pos.a - 1] : 0u);
-    if (q_a == 0) return 0.0;
-    const uint32_t* cells = &conditional_[(size_t(k) * H + pos.a) * P];
-    const uint32_t r_b = uint32_t(cells[pos.b]) - (pos.b ? cells[pos.b - 1] : 0u);
-    if (r_b == 0) return 0.0;
-    const float* c = &value_[(size_t(k) * (H + 1) + pos.a) * W + pos.b];
+    const double p = cell_probability(k, pos.a, pos.b);
+    if (p == 0) return 0.0;
+    const int W = cells_p_ + 1;
+    const float* c = &value_[(size_t(k) * (cells_h_ + 1) + pos.a) * W + pos.b];
     const double v00 = c[0], v01 = c[1], v10 = c[W], v11 = c[W + 1];
     const double mean = 0.25 * (v00 + v01 + v10 + v11);
     const double here = lerp(lerp(v00, v01, pos.t), lerp(v10, v11, pos.t), pos.s);
-    return (double(q_a) / rows[H - 1]) * (double(r_b) / cells[P - 1]) * here / mean;
+    return p * here / mean;
 }
 
 Vec3 TableSampler::sample(const Vec3& wo, double u1, double u2) const {
@@ -263,11 +292,8 @@ Vec3 TableSampler::sample(const Vec3& wo, double u1, double u2) const {
     Mixture m;
     if (!mixture(wo, &m)) return {};
     if (cells_mode_) return sample_cells(wo, m, u1, u2);
-    // Node: u2 split at the nodes' probabilities and stretched back to [0, 1).
-    int i = 0;
-    double v = std::clamp(u2, 0.0, kOneMinusEps);
-    while (i < m.count - 1 && v >= m.p[i]) v -= m.p[i++];
-    v = std::clamp(v / m.p[i], 0.0, kOneMinusEps);
+    double v = 0;
+    const int i = choose_node(m, u2, &v);
     const int k = m.node[i], H = cells_h_, P = cells_p_, W = P + 1;
     u1 = std::clamp(u1, 0.0, kOneMinusEps);
 
@@ -276,14 +302,7 @@ Vec3 TableSampler::sample(const Vec3& wo, double u1, double u2) const {
     double fs = 0, ft = 0;
     const int a = pick(&marginal_[size_t(k) * H], H, u1, &fs);
     if (a >= H) return {};  // a node of total mass 0 (never chosen: its probability is 0)
-    bool plus = true;
-    if (mirror_) {
-        // Each side of the viewer's plane of incidence with probability 1/2, v folded so that
-        // the map stays continuous: v = 1/2 is phi_h = 0 on both sides, v = 0 and 1 are
-        // phi_h = -pi and pi, the same half plane (stratified u keep their spacing).
-        plus = v >= 0.5;
-        v = std::clamp(plus ? 2.0 * v - 1.0 : 1.0 - 2.0 * v, 0.0, kOneMinusEps);
-    }
+    const bool plus = mirror_ ? fold_side(&v) : true;
     const int b = pick(&conditional_[(size_t(k) * H + a) * P], P, v, &ft);
     if (b >= P) return {};
     // Bilinear density inside the cell: s (along 1 - cos theta_h) by its linear marginal,
@@ -400,7 +419,6 @@ void TableSampler::corners(int j, int a, int b, double v[4]) const {
 
 void TableSampler::build_cells(const BrdfTable& table) {
     cells_mode_ = true;
-    node_frame_ = false;  // the cells are the table's own: no half vectors
     table_ = &table;
     const TableGeometry& g = table.geometry();
     channels_ = g.channels;
@@ -419,25 +437,15 @@ void TableSampler::build_cells(const BrdfTable& table) {
     total_.assign(n_to_, 0.0);
     marginal_.assign(size_t(n_to_) * H, 0);
     conditional_.assign(size_t(n_to_) * H * P, 0);
-    std::vector<double> w(P), rows(H);
+    std::vector<double> w(size_t(H) * P);
     for (int j = 0; j < n_to_; ++j) {
-        double node_total = 0;
-        for (int a = 0; a < H; ++a) {
-            double row_total = 0;
+        for (int a = 0; a < H; ++a)
             for (int b = 0; b < P; ++b) {
                 double v[4];
                 corners(j, a, b, v);
-                row_total += (w[b] = cell_mass(a, v));
+                w[size_t(a) * P + b] = cell_mass(a, v);
             }
-            uint32_t* cdf = &conditional_[(size_t(j) * H + a) * P];
-            uint32_t acc = 0;
-            for (int b = 0; b < P; ++b) cdf[b] = (acc += units(w[b], row_total, kRowUnits));
-            rows[a] = row_total;
-            node_total += row_total;
-        }
-        total_[j] = node_total;
-        uint32_t acc = 0;
-        for (int a = 0; a < H; ++a) marginal_[size_t(j) * H + a] = (acc += units(rows[a], node_total, kRowUnits));
+        fill_cdfs(j, w);
     }
     bytes_ = sizeof(*this) + (total_.capacity() + sincos_.capacity()) * sizeof(double) +
              marginal_.capacity() * sizeof(uint32_t) + conditional_.capacity() * sizeof(uint32_t);
@@ -452,31 +460,21 @@ double TableSampler::cell_mass(int a, const double v[4]) const {
 }
 
 double TableSampler::cell_density(int j, int a, int b, double s, double t) const {
-    const int H = cells_h_, P = cells_p_;
-    const uint32_t* rows = &marginal_[size_t(j) * H];
-    const uint32_t q_a = rows[a] - (a ? rows[a - 1] : 0u);
-    if (q_a == 0) return 0.0;
-    const uint32_t* cells = &conditional_[(size_t(j) * H + a) * P];
-    const uint32_t r_b = cells[b] - (b ? cells[b - 1] : 0u);
-    if (r_b == 0) return 0.0;
+    const double p = cell_probability(j, a, b);
+    if (p == 0) return 0.0;
     double v[4];
     corners(j, a, b, v);
     const double here = lerp(lerp(v[0], v[1], t), lerp(v[2], v[3], t), s);
-    return (double(q_a) / rows[H - 1]) * (double(r_b) / cells[P - 1]) * here / cell_mass(a, v);
+    return p * here / cell_mass(a, v);
 }
 
 Vec3 TableSampler::sample_cells(const Vec3& wo, const Mixture& m, double u1, double u2) const {
-    int i = 0;
-    double v = std::clamp(u2, 0.0, kOneMinusEps);
-    while (i < m.count - 1 && v >= m.p[i]) v -= m.p[i++];
-    v = std::clamp(v / m.p[i], 0.0, kOneMinusEps);
-    const int j = m.node[i], H = cells_h_, P = cells_p_;
+    double v = 0;
+    const int j = m.node[choose_node(m, u2, &v)], H = cells_h_, P = cells_p_;
     double fs = 0, ft = 0;
     const int a = pick(&marginal_[size_t(j) * H], H, std::clamp(u1, 0.0, kOneMinusEps), &fs);
     if (a >= H) return {};
-    // Either side of the viewer's plane with probability 1/2, v folded as in sample().
-    const bool plus = v >= 0.5;
-    v = std::clamp(plus ? 2.0 * v - 1.0 : 1.0 - 2.0 * v, 0.0, kOneMinusEps);
+    const bool plus = fold_side(&v);
     const int b = pick(&conditional_[(size_t(j) * H + a) * P], P, v, &ft);
     if (b >= P) return {};
     double c[4];

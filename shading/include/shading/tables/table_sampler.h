@@ -87,7 +87,7 @@ private:
     struct Mixture {
         int node[4];
         double p[4];  // probability of each node
-        Vec3 ref[4];  // the direction each node's half vectors reflect (node_frame_)
+        Vec3 ref[4];  // the direction each node's half vectors reflect (see mirror_)
         int count;
     };
     bool mixture(const Vec3& wo, Mixture* m) const;
@@ -99,6 +99,11 @@ private:
     // Density of node k at a place, per unit of (s, t) area of its cell times the cell's
     // probability: the bilinear node values over their cell mean, times P(cell).
     double node_density(int k, const HPos& pos) const;
+    // Every layout: the CDFs of node k from its cells' masses (H x P, row-major); the
+    // probability of cell (a, b); the node a mixture's u2 chooses (v: u2 stretched back).
+    void fill_cdfs(int k, const std::vector<double>& mass);
+    double cell_probability(int k, int a, int b) const;
+    int choose_node(const Mixture& m, double u2, double* v) const;
     void build_node(const BrdfTable& table, int k, const Vec3& wo, std::vector<double>& g);
     void place_rows();
     Vec3 node_direction(int k) const;
@@ -115,17 +120,16 @@ private:
     int n_ti_ = 0, channels_ = 3;
     double step_ti_ = 0;          // radians
     std::vector<double> sincos_;  // sin theta cos theta of each theta_i node
+    // Isotropic and half/difference layouts: phi in [0, pi], either side of the viewer's plane
+    // with probability 1/2. Anisotropic grids (false) also reflect each node's own theta_o at
+    // the viewer's azimuth, not the viewer (a table between theta_r nodes is the blend of its
+    // node planes, which the nodes' mixture then follows); half/difference lobes are fixed in h.
     bool mirror_ = true;
-    // Half vectors reflect the node's own theta_o at the viewer's azimuth (isotropic and
-    // anisotropic grids: a table between theta_r nodes is the blend of its node planes, which the
-    // nodes' mixture then follows exactly), or the viewer itself (half/difference tables, whose
-    // lobes are fixed in h).
-    bool node_frame_ = true;          // isotropic: phi_h in [0, pi], either side with probability 1/2
     int n_to_ = 0, n_po_ = 1;     // viewer nodes in theta_o and phi_o
     double step_to_ = 0, step_po_ = 0;  // radians
     int cells_h_ = 0, cells_p_ = 0;     // H, P
     double dphi_ = 0;                   // column width, radians
-    std::vector<double> omc_;           // row edges: 1 - cos(theta_h) (cells mode: sin^2 theta_i)
+    std::vector<double> omc_;           // half-vector grids: row edges, 1 - cos(theta_h)
     std::vector<double> total_;         // per node: its mass (an estimate of the albedo)
     std::vector<float> value_;          // [k][a][b]: g at the nodes (floored), (H+1)(P+1) per node
     std::vector<uint32_t> marginal_;    // [k][a]: inclusive cumulative row units
