@@ -1,0 +1,107 @@
+// Random-walk subsurface transport inside an object's own surface (`method random_walk`): exact
+// volumetric transport for any shape the renderer can intersect, where no profile can be right
+// (slanted light, thin sheets, forward-scattering media, small and concave objects).
+// shading/DIPOLE.md, section "Random walk", derives every factor below.
+//
+// A walk starts where the camera ray meets the surface and follows light backwards:
+//  * in: the camera direction refracted at the surface; the radiance that leaves is
+//    Ft(cos_o) / eta^2 times the radiance inside (Fresnel transmittance, the n^2 law);
+//  * free flights with per-channel sigma_t: the channel that sets each flight is drawn in
+//    proportion to the walk's weight in that channel, and every channel is weighted by the
+//    one-sample balance heuristic over the channels (the mixture of the three exponentials),
+//    so one walk serves three media of very different reach without bias;
+//  * Henyey-Greenstein scattering, g per channel, sampled and weighted the same way;
+//  * at the surface (a flight that reaches it): exact unpolarised Fresnel from inside, total
+//    internal reflection included; reflected with probability F, else the walk leaves (the
+//    outside is lit only by the renderer's lights, which the next step counts);
+//  * next-event estimation at every scattering vertex v, for every light: the light enters at
+//    the surface point x_i whose refracted ray passes through v (found by following the
+//    refracted direction back from v, a fixed point that is exact for a flat face and
+//    converges in a few steps on curved ones), arrives as a collimated beam of irradiance
+//    E c cos_i Ft(cos_i) / cos_t across its own direction, is attenuated by exp(-sigma_t s)
+//    over the distance s from x_i, and scatters by the phase function into the walk.
+//    Shadows, spotlights and light colours are the renderer's, asked at x_i.
+// Russian roulette on the largest channel weight bounds the walk without bias.
+//
+// Lengths in scene units (the medium's coefficients are per mm, times mm_per_unit).
+// Pixel values are pi x radiance (POV-Ray's convention: a light's colour is the irradiance it
+// gives a surface facing it).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+
+#include "shading/core/vec.h"
+#include "shading/subsurface/dipole.h"  // Medium
+
+namespace shading {
+
+// The object's surface and the scene's lights, as a walk inside the object sees them.
+class WalkScene {
+public:
+    virtual ~WalkScene() = default;
+    struct Hit {
+        double t;   // distance from the ray's origin
+        Vec3 p, n;  // point and OUTWARD unit normal there
+    };
+    // Where origin + t d (origin inside the object, d unit) first leaves the object, t > 0:
+    // the nearest crossing behind which the object is not. False: it never does (an unbounded
+    // medium, e.g. a half-space).
+    virtual bool leave(const Vec3& origin, const Vec3& d, Hit* hit) = 0;
+    virtual int light_count() = 0;
+    // Unit direction from p toward light i (a parallel light: its direction); false: the light
+    // cannot reach p (none there).
+    virtual bool light_direction(int i, const Vec3& p, Vec3* to_light) = 0;
+    // Light i's colour arriving at the surface point p (outward normal n) from to_light, after
+    // the scene's shadows, spotlight cone and fading: the irradiance it gives a surface facing it.
+    virtual Rgb light_colour(int i, const Vec3& p, const Vec3& n, const Vec3& to_light) = 0;
+};
+
+struct WalkSettings {
+    int samples = 16;                  // walks per shaded point
+    double roulette_weight = 0.05;     // roulette below this largest channel weight
+    int max_vertices = 1 << 20;        // a walk stops here whatever its weight (never reached in practice)
+    int fixed_point_steps = 6;         // refraction-point iterations for next-event estimation
+};
+
+// Counters of every walk of the process (relaxed atomics: statistics only).
+struct WalkStats {
+    std::uint64_t walks = 0, vertices = 0, light_paths = 0, truncated = 0;
+};
+WalkStats random_walk_stats();
+void random_walk_stats_reset();
+
+// The walk's coefficients in scene units, checked once.
+class RandomWalk {
+public:
+    // Throws std::invalid_argument with Medium::validate()'s message, or for g with |g| >= 1.
+    RandomWalk(const Medium& medium, const WalkSettings& settings);
+    const WalkSettings& settings() const { return settings_; }
+
+    // pi x radiance leaving the surface at x (outward unit normal n) toward to_eye (unit, on
+    // n's side), averaged over settings().samples walks. `seed` names the walks: the same seed
+    // gives the same pixel (the renderer seeds with the hit point).
+    Rgb radiance(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t seed) const;
+
+    // One walk (for tests that need per-walk values): pi x radiance estimate of a single walk.
+    Rgb walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t& rng_state) const;
+
+private:
+    // Light from every light scattered at v toward -d, per unit weight.
+    Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d) const;
+
+    WalkSettings settings_;
+    double eta_;
+    Rgb sigma_s_, sigma_t_, g_;  // per scene unit
+};
+
+// Henyey-Greenstein: a direction about `axis` whose cosine with it has density
+// 2 pi henyey_greenstein(cos, g), from two uniforms in [0, 1).
+Vec3 sample_henyey_greenstein(const Vec3& axis, double g, double u1, double u2);
+
+// Snell's law: a ray travelling along unit d meets a surface of unit normal n from n's side
+// (d . n < 0), where the index is n1, and continues beyond it, where the index is n2;
+// eta = n2 / n1. *t: its unit direction there. False: total internal reflection.
+bool refract_into(const Vec3& d, const Vec3& n, double eta, Vec3* t);
+
+}  // namespace shading

@@ -1,0 +1,206 @@
+// Random-walk subsurface transport: see random_walk.h and shading/DIPOLE.md, "Random walk".
+#include "shading/subsurface/random_walk.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "shading/brdf/fresnel.h"
+#include "shading/core/random.h"
+
+namespace shading {
+namespace {
+
+std::atomic<std::uint64_t> g_walks{0}, g_vertices{0}, g_light_paths{0}, g_truncated{0};
+
+Rgb exp_neg(const Rgb& sigma, double t) {
+    return Rgb(std::exp(-sigma.r * t), std::exp(-sigma.g * t), std::exp(-sigma.b * t));
+}
+
+// The channel whose share of `q` (non-negative, positive sum `total`) contains u in [0, 1).
+int pick_channel(const Rgb& q, double total, double u) {
+    const double x = u * total;
+    if (x < q.r) return 0;
+    if (x < q.r + q.g) return 1;
+    return q.b > 0 ? 2 : (q.g > 0 ? 1 : 0);
+}
+
+}  // namespace
+
+WalkStats random_walk_stats() {
+    WalkStats s;
+    s.walks = g_walks.load(std::memory_order_relaxed);
+    s.vertices = g_vertices.load(std::memory_order_relaxed);
+    s.light_paths = g_light_paths.load(std::memory_order_relaxed);
+    s.truncated = g_truncated.load(std::memory_order_relaxed);
+    return s;
+}
+
+void random_walk_stats_reset() {
+    g_walks = 0;
+    g_vertices = 0;
+    g_light_paths = 0;
+    g_truncated = 0;
+}
+
+Vec3 sample_henyey_greenstein(const Vec3& axis, double g, double u1, double u2) {
+    double c;
+    if (std::fabs(g) < 1e-3) {
+        c = 1.0 - 2.0 * u1;
+    } else {
+        // inverse of the HG cosine CDF
+        const double s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
+        c = (1.0 + g * g - s * s) / (2.0 * g);
+    }
+    c = std::clamp(c, -1.0, 1.0);
+    const double sn = std::sqrt(std::max(0.0, 1.0 - c * c)), phi = 2.0 * kPi * u2;
+    const Frame f = Frame::from_normal(axis);
+    return normalize(f.t * (sn * std::cos(phi)) + f.b * (sn * std::sin(phi)) + axis * c);
+}
+
+bool refract_into(const Vec3& d, const Vec3& n, double eta, Vec3* t) {
+    const double cos_i = -dot(d, n);  // > 0: d goes against n
+    const double sin2_t = std::max(0.0, 1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) return false;
+    const double cos_t = std::sqrt(1.0 - sin2_t);
+    *t = normalize(d * (1.0 / eta) + n * (cos_i / eta - cos_t));
+    return true;
+}
+
+RandomWalk::RandomWalk(const Medium& medium, const WalkSettings& settings) : settings_(settings) {
+    const std::string problem = medium.validate();
+    if (!problem.empty()) throw std::invalid_argument(problem);
+    for (int c = 0; c < 3; c++)
+        if (!(std::fabs(medium.g[c]) < 1.0))
+            throw std::invalid_argument("random walk: anisotropy must be inside (-1, 1), found " +
+                                        std::to_string(medium.g[c]));
+    if (settings.samples < 1) throw std::invalid_argument("random walk: samples must be at least 1");
+    eta_ = medium.eta;
+    sigma_s_ = medium.sigma_s_per_unit();
+    sigma_t_ = sigma_s_ + medium.sigma_a_per_unit();
+    g_ = medium.g;
+}
+
+Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d) const {
+    Rgb sum(0.0);
+    const int lights = scene.light_count();
+    for (int i = 0; i < lights; i++) {
+        Vec3 w;  // from v toward the point where the light enters
+        if (!scene.light_direction(i, v, &w)) continue;
+        WalkScene::Hit h{};
+        Vec3 to_light, along;  // at the entry point: toward the light, and the refracted beam
+        bool found = false;
+        for (int step = 0; step < settings_.fixed_point_steps; step++) {
+            if (!scene.leave(v, w, &h)) break;
+            if (!scene.light_direction(i, h.p, &to_light)) break;
+            if (!(dot(to_light, h.n) > 0)) break;  // the light is behind the face it would enter
+            if (eta_ == 1.0)
+                along = -to_light;
+            else if (!refract_into(-to_light, h.n, eta_, &along))
+                break;
+            const Vec3 next = -along;
+            if (dot(next, w) > 1.0 - 1e-12) {
+                found = true;
+                break;
+            }
+            w = next;
+        }
+        g_light_paths.fetch_add(1, std::memory_order_relaxed);
+        if (!found) continue;
+        const double cos_i = dot(to_light, h.n), cos_t = dot(w, h.n);
+        if (!(cos_i > 0 && cos_t > 0)) continue;
+        const Rgb c = scene.light_colour(i, h.p, h.n, to_light);
+        if (!(c.max_component() > 0)) continue;
+        // the beam's irradiance across its own direction inside: what crosses a unit of
+        // surface (c cos_i Ft) spread over cos_t of it
+        const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t;
+        const Rgb tr = exp_neg(sigma_t_, h.t);
+        const double cos_phase = dot(w, d);  // light along -w, scattered to -d
+        for (int ch = 0; ch < 3; ch++) sum[ch] += c[ch] * beam * tr[ch] * henyey_greenstein(cos_phase, g_[ch]);
+    }
+    return sum;
+}
+
+Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                     std::uint64_t& state) const {
+    const double cos_o = dot(n, to_eye);
+    if (!(cos_o > 0)) return Rgb(0.0);
+    Vec3 d;
+    if (!refract_into(-to_eye, n, eta_, &d)) return Rgb(0.0);
+    g_walks.fetch_add(1, std::memory_order_relaxed);
+    const double start = (1.0 - fresnel_dielectric(cos_o, eta_)) / (eta_ * eta_);
+    Rgb beta(start), sum(0.0);
+    const bool same_g = g_.r == g_.g && g_.g == g_.b;
+    Vec3 p = x;
+    auto uniform = [&]() { return uniform_double(splitmix64(state)); };
+    std::uint64_t vertices = 0;
+    int k = 0;
+    for (; k < settings_.max_vertices; k++) {
+        WalkScene::Hit h{};
+        const double tb = scene.leave(p, d, &h) ? h.t : kInf;
+        const double total = beta.r + beta.g + beta.b;
+        if (!(total > 0)) break;
+        const int c = pick_channel(beta, total, uniform());
+        const Rgb q = beta * (1.0 / total);
+        const double t = sigma_t_[c] > 0 ? -std::log(1.0 - uniform()) / sigma_t_[c] : kInf;
+        if (t >= tb) {
+            // the flight reaches the surface: probability exp(-sigma_t tb) in each channel
+            const Rgb tr = exp_neg(sigma_t_, tb);
+            const double pdf = q.r * tr.r + q.g * tr.g + q.b * tr.b;
+            if (!(pdf > 0)) break;
+            beta = beta * tr * (1.0 / pdf);
+            const double cos_i = dot(d, h.n);
+            const double f = eta_ == 1.0 ? 0.0 : fresnel_dielectric(cos_i, 1.0 / eta_);
+            if (!(uniform() < f)) break;  // leaves: the outside is lit only by the lights
+            d = normalize(d - h.n * (2.0 * cos_i));
+            p = h.p;
+            continue;
+        }
+        if (!std::isfinite(t)) break;
+        p = p + d * t;
+        vertices++;
+        const Rgb tr = exp_neg(sigma_t_, t);
+        const Rgb dens = sigma_t_ * tr;
+        const double pdf = q.r * dens.r + q.g * dens.g + q.b * dens.b;
+        if (!(pdf > 0)) break;
+        beta = beta * sigma_s_ * tr * (1.0 / pdf);
+        sum += beta * next_event(scene, p, d);
+        // the next direction, from the phase function of a channel drawn by weight
+        const double total2 = beta.r + beta.g + beta.b;
+        if (!(total2 > 0)) break;
+        const double u_ch = uniform(), u1 = uniform(), u2 = uniform();
+        const int j = same_g ? 0 : pick_channel(beta, total2, u_ch);
+        const Vec3 next = sample_henyey_greenstein(d, g_[j], u1, u2);
+        if (!same_g) {
+            const double cs = dot(d, next);
+            const Rgb ph(henyey_greenstein(cs, g_.r), henyey_greenstein(cs, g_.g), henyey_greenstein(cs, g_.b));
+            const Rgb q2 = beta * (1.0 / total2);
+            const double pdf2 = q2.r * ph.r + q2.g * ph.g + q2.b * ph.b;
+            if (!(pdf2 > 0)) break;
+            beta = beta * ph * (1.0 / pdf2);
+        }
+        d = next;
+        // Russian roulette on the largest channel weight
+        const double m = beta.max_component(), floor = settings_.roulette_weight * start;
+        if (m < floor) {
+            const double survive = m / floor;
+            if (!(uniform() < survive)) break;
+            beta = beta * (1.0 / survive);
+        }
+    }
+    if (k == settings_.max_vertices) g_truncated.fetch_add(1, std::memory_order_relaxed);
+    g_vertices.fetch_add(vertices, std::memory_order_relaxed);
+    return sum * kPi;
+}
+
+Rgb RandomWalk::radiance(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t seed) const {
+    Rgb sum(0.0);
+    std::uint64_t state = seed;
+    for (int s = 0; s < settings_.samples; s++) {
+        std::uint64_t walk_state = splitmix64(state);  // one stream per walk
+        sum += walk(scene, x, n, to_eye, walk_state);
+    }
+    return sum * (1.0 / settings_.samples);
+}
+
+}  // namespace shading
