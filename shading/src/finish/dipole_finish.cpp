@@ -3,8 +3,10 @@
 #include "shading/finish/dipole_finish.h"
 
 #include <cstdio>
+#include <cstring>
 #include <stdexcept>
 
+#include "shading/core/random.h"
 #include "shading/subsurface/media_presets.h"
 #include "shading/subsurface/radial_profile.h"
 #include "shading/subsurface/ss_profile.h"
@@ -94,6 +96,36 @@ private:
     std::vector<DipoleObject::Hit> found_;
 };
 
+// The renderer's object as the random walk's scene.
+class Walker final : public WalkScene {
+public:
+    explicit Walker(DipoleObject& object) : object_(object) {}
+    bool leave(const Vec3& o, const Vec3& d, Hit* hit) override {
+        DipoleObject::Hit h{};
+        if (!object_.leave(o, d, &h)) return false;
+        *hit = Hit{h.t, h.p, h.n};
+        return true;
+    }
+    int light_count() override { return object_.light_count(); }
+    bool light_direction(int i, const Vec3& p, Vec3* l) override { return object_.light_direction(i, p, l); }
+    Rgb light_colour(int i, const Vec3& p, const Vec3& n, const Vec3& l) override { return object_.light_colour(i, p, n, l); }
+
+private:
+    DipoleObject& object_;
+};
+
+// The walks of a pixel are named by the shaded point: the same point, the same walks.
+std::uint64_t point_seed(const Vec3& x) {
+    std::uint64_t state = 0x5eed5eed5eedULL;
+    for (double v : {x.x, x.y, x.z}) {
+        std::uint64_t bits;
+        std::memcpy(&bits, &v, sizeof bits);
+        state ^= bits;
+        state = splitmix64(state);
+    }
+    return state;
+}
+
 }  // namespace
 
 void dipole_preset_check(const std::string& name) { (void)media_preset(name); }
@@ -130,6 +162,19 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (p.error_bound) settings.max_angle = *p.error_bound;
     if (p.refine_levels) settings.max_levels = *p.refine_levels;
     if (p.thin_geometry) settings.thin = *p.thin_geometry;
+    if (p.samples) settings.walk.samples = *p.samples;
+    if (p.random_walk) {
+        // exact transport: nothing tabulated, single scattering is part of the walk
+        settings.method = SubsurfaceSettings::Method::RandomWalk;
+        settings.single_scatter = false;
+        std::shared_ptr<const Subsurface> subsurface;
+        try {
+            subsurface = std::make_shared<const Subsurface>(medium, settings, FdrModel::JensenFit, nullptr);
+        } catch (const std::exception& e) {
+            throw std::invalid_argument(prefixed(e.what()));
+        }
+        return finish_model_with_subsurface(coat, subsurface);
+    }
     std::shared_ptr<const ExactProfile> exact;
     if (p.exact_profile) exact = exact_profile(medium, find);
     std::shared_ptr<const RadialProfile> profile = exact;
@@ -146,6 +191,10 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
 Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, DipoleObject& object, const Vec3& x,
                                const Vec3& n, const Vec3& to_eye, const std::function<Rgb()>& here) {
     const Subsurface& subsurface = *model.subsurface;
+    if (const RandomWalk* walk = subsurface.walk()) {
+        Walker walker(object);
+        return walk->radiance(walker, x, n, to_eye, point_seed(x));
+    }
     Sampler sampler(object);
     const PointCloud& cloud = subsurface.cloud(key, sampler);
     const Rgb e = here();
@@ -187,6 +236,14 @@ std::vector<std::string> finish_statistics() {
         for (std::size_t i = 0; i < ss.notes.size() && i < shown; i++) lines.push_back(ss.notes[i]);
         if (ss.notes.size() > shown)
             line("Dipole warning: %.0f more object(s) smaller than 3 diffusion lengths", double(ss.notes.size() - shown));
+    }
+    const WalkStats ws = random_walk_stats();
+    if (ws.walks > 0) {
+        line("Dipole random walks: %14.0f         Vertices/walk: %7.1f", double(ws.walks), double(ws.vertices) / double(ws.walks));
+        line("Dipole walk lights: %15.0f paths (next-event estimates)", double(ws.light_paths));
+        if (ws.truncated > 0)
+            line("Dipole warning: %.0f walk(s) stopped at %d vertices (a medium that almost never absorbs)",
+                 double(ws.truncated), WalkSettings().max_vertices);
     }
     const SharedTableStats bt = shared_table_stats();
     if (bt.peak_tables > 0) {

@@ -28,6 +28,10 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     if (!model_) model_ = std::make_shared<const DipoleRadialProfile>(dipole_);
     profile_ = make_rd_profile(model_);
     reach_ = profile_->radius_containing(0.99);
+    if (settings_.method == SubsurfaceSettings::Method::RandomWalk) {
+        walk_ = std::make_unique<const RandomWalk>(medium, settings_.walk);
+        return;  // no cloud, no slabs: the walk is exact in any geometry
+    }
     if (settings_.thin) {
         slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
         const double d_min = kSlabMinMfp * mean_free_path();

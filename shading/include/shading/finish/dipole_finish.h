@@ -29,6 +29,8 @@ struct DipoleParams {
     std::optional<bool> single_scatter;                   // default: on with the exact profile
     std::optional<bool> thin_geometry;
     bool exact_profile = true;                            // `profile exact` (default) or `profile dipole`
+    bool random_walk = false;                             // `method random_walk` (default `method profile`)
+    std::optional<int> samples;                           // walks per shaded point (random_walk)
     std::string file;                                     // where the block is written, for its notes
     int line = 0;
 };
@@ -76,6 +78,19 @@ public:
     virtual CameraView camera() { return CameraView(); }
     // Distance from p along -n to the object's next surface crossing (infinity: none).
     virtual double thickness(const Vec3& p, const Vec3& n) = 0;
+
+    // `method random_walk` (shading/subsurface/random_walk.h, WalkScene): where the ray
+    // origin + t d (origin inside the object) first leaves it, t > 0, crossings into another part
+    // of the object skipped (false: never); the scene's lights seen from a point of the surface.
+    virtual bool leave(const Vec3& origin, const Vec3& d, Hit* hit) { (void)origin; (void)d; (void)hit; return false; }
+    virtual int light_count() { return 0; }
+    // Unit direction from p toward light i; false: none.
+    virtual bool light_direction(int i, const Vec3& p, Vec3* to_light) { (void)i; (void)p; (void)to_light; return false; }
+    // Light i's colour arriving at surface point p (outward normal n) from to_light, after shadows.
+    virtual Rgb light_colour(int i, const Vec3& p, const Vec3& n, const Vec3& to_light) {
+        (void)i; (void)p; (void)n; (void)to_light;
+        return Rgb(0.0);
+    }
 };
 
 // pixel += finish_subsurface_radiance(...): the light that entered `model`'s medium on the object

@@ -48,6 +48,7 @@
 #include "shading/subsurface/exact_profile.h"
 #include "shading/subsurface/point_cloud.h"
 #include "shading/subsurface/radial_profile.h"
+#include "shading/subsurface/random_walk.h"
 #include "shading/subsurface/rd_profile.h"
 #include "shading/subsurface/slab.h"
 #include "shading/subsurface/slab_cache.h"
@@ -72,6 +73,11 @@ struct SubsurfaceSettings {
     // Thin geometry: each sample's thickness (SurfaceSampler::thickness) and, where an object
     // is thinner than slab_threshold(), slab profiles (slab.h) instead of the half-space's.
     bool thin = true;
+    // `method profile` (the above) or `method random_walk`: exact transport inside the
+    // object's own surface (random_walk.h), no cloud, no profile, no single-scattering BRDF.
+    enum class Method { Profile, RandomWalk };
+    Method method = Method::Profile;
+    WalkSettings walk;
 };
 
 // What one `dipole { }` finish holds: the medium, its settings, the radial profile (the model,
@@ -93,6 +99,8 @@ public:
     const RadialProfile& model() const { return *model_; }
     const std::shared_ptr<const RadialProfile>& model_ptr() const { return model_; }
     const SubsurfaceSettings& settings() const { return settings_; }
+    // The walk of `method random_walk` (null for profiles).
+    const RandomWalk* walk() const { return walk_.get(); }
 
     // Base sample spacing for an object whose bounding box has the given largest extent: the
     // user's, or the larger of half the smallest channel's mean free path 1/sigma_t' and
@@ -146,6 +154,7 @@ private:
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
+    std::unique_ptr<const RandomWalk> walk_;  // method random_walk: null otherwise
     CloudCache clouds_;
     std::shared_ptr<const PointCloud> build(const ParallelFor& parallel, SurfaceSampler& sampler) const;
 };
