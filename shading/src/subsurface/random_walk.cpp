@@ -81,7 +81,8 @@ RandomWalk::RandomWalk(const Medium& medium, const WalkSettings& settings) : set
     g_ = medium.g;
 }
 
-Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d) const {
+Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
+                           std::uint64_t& state) const {
     Rgb sum(0.0);
     const int lights = scene.light_count();
     for (int i = 0; i < lights; i++) {
@@ -109,14 +110,24 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d) const
         if (!found) continue;
         const double cos_i = dot(to_light, h.n), cos_t = dot(w, h.n);
         if (!(cos_i > 0 && cos_t > 0)) continue;
-        const Rgb c = scene.light_colour(i, h.p, h.n, to_light);
-        if (!(c.max_component() > 0)) continue;
         // the beam's irradiance across its own direction inside: what crosses a unit of
         // surface (c cos_i Ft) spread over cos_t of it
         const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t;
         const Rgb tr = exp_neg(sigma_t_, h.t);
         const double cos_phase = dot(w, d);  // light along -w, scattered to -d
-        for (int ch = 0; ch < 3; ch++) sum[ch] += c[ch] * beam * tr[ch] * henyey_greenstein(cos_phase, g_[ch]);
+        Rgb f;
+        for (int ch = 0; ch < 3; ch++) f[ch] = beta[ch] * beam * tr[ch] * henyey_greenstein(cos_phase, g_[ch]);
+        // the shadow test (the costly part: a ray through the scene) by roulette where the beam
+        // arrives weaker than `floor` of its strength in every channel (unbiased)
+        if (!(f.max_component() > 0)) continue;
+        const double most = tr.max_component();
+        double keep = 1.0;
+        if (most < floor) {
+            keep = most / floor;
+            if (!(uniform_double(splitmix64(state)) < keep)) continue;
+        }
+        const Rgb c = scene.light_colour(i, h.p, h.n, to_light);
+        sum += c * f * (1.0 / keep);
     }
     return sum;
 }
@@ -164,7 +175,7 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
         const double pdf = q.r * dens.r + q.g * dens.g + q.b * dens.b;
         if (!(pdf > 0)) break;
         beta = beta * sigma_s_ * tr * (1.0 / pdf);
-        sum += beta * next_event(scene, p, d);
+        sum += next_event(scene, p, d, beta, settings_.light_floor, state);
         // the next direction, from the phase function of a channel drawn by weight
         const double total2 = beta.r + beta.g + beta.b;
         if (!(total2 > 0)) break;

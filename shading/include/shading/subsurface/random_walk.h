@@ -20,7 +20,8 @@
 //    converges in a few steps on curved ones), arrives as a collimated beam of irradiance
 //    E c cos_i Ft(cos_i) / cos_t across its own direction, is attenuated by exp(-sigma_t s)
 //    over the distance s from x_i, and scatters by the phase function into the walk.
-//    Shadows, spotlights and light colours are the renderer's, asked at x_i.
+//    Shadows, spotlights and light colours are the renderer's, asked at x_i; where the
+//    light could add little (a deep vertex), the shadow test is made by roulette.
 // Russian roulette on the largest channel weight bounds the walk without bias.
 //
 // Lengths in scene units (the medium's coefficients are per mm, times mm_per_unit).
@@ -62,6 +63,9 @@ struct WalkSettings {
     double roulette_weight = 0.05;     // roulette below this largest channel weight
     int max_vertices = 1 << 20;        // a walk stops here whatever its weight (never reached in practice)
     int fixed_point_steps = 6;         // refraction-point iterations for next-event estimation
+    // Shadow rays for a beam attenuated below this (exp(-sigma_t s) in every channel: a deep
+    // vertex) are traced by roulette, with probability attenuation / light_floor.
+    double light_floor = 1e-2;
 };
 
 // Counters of every walk of the process (relaxed atomics: statistics only).
@@ -87,8 +91,10 @@ public:
     Rgb walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t& rng_state) const;
 
 private:
-    // Light from every light scattered at v toward -d, per unit weight.
-    Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d) const;
+    // Light from every light scattered at v toward -d, times the walk's weight beta; a beam
+    // attenuated below `floor` in every channel is shadow-tested by roulette.
+    Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
+                   std::uint64_t& state) const;
 
     WalkSettings settings_;
     double eta_;
