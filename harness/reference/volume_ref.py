@@ -504,8 +504,19 @@ def shadow_edge(sigma_s, sigma_a, g: float, eta: float, light_dir, xs, *, thickn
             def on_collision(pid, x, y, z, ux, uy, uz, w):
                 for val, v in _contrib(pv, terms, st, d, g, z, ux, uy, uz, w):
                     delta = x + pv.wx * v / pv.mu          # exit point: the entry at x0 - delta
-                    # lit entry (x0 - delta > 0) for x0 = xs_sorted[k:]: a suffix, summed below
-                    acc.add(pid * (nx + 1) + np.searchsorted(xs_sorted, delta, side="right"), val)
+                    # lit entry (x0 - delta > 0) for x0 = xs_sorted[k:]: a suffix, summed below.
+                    # delta == x0 exactly (a line in the pencil response, e.g. single scattering
+                    # under normal light and view at x0 = 0) counts half: the mean of both limits.
+                    kr = np.searchsorted(xs_sorted, delta, side="right")
+                    kl = np.searchsorted(xs_sorted, delta, side="left")
+                    base = pid * (nx + 1)
+                    tie = kl != kr
+                    if tie.any():
+                        acc.add(base[tie] + kl[tie], 0.5 * val[tie])
+                        acc.add(base[tie] + kr[tie], 0.5 * val[tie])
+                        acc.add(base[~tie] + kr[~tie], val[~tie])
+                    else:
+                        acc.add(base + kr, val)
 
             start = (np.zeros(m), np.zeros(m), np.zeros(m), np.full(m, dx), np.full(m, dy), np.full(m, dz),
                      np.ones(m))
@@ -755,14 +766,14 @@ def sphere(sigma_s, sigma_a, g: float, eta: float, radius: float, light_dir, vie
             py = b1 * e1[1] + b2 * e2[1] + h * light[1]
             pz = b1 * e1[2] + b2 * e2[2] + h * light[2]
             start = (px, py, pz, np.full(m, -light[0]), np.full(m, -light[1]), np.full(m, -light[2]),
-                     np.full(m, power))
+                     np.ones(m))                 # unit weights (roulette is relative); power below
             wk = _walk(rng, start, ss[c], sa[c], g, 1.0, geom, 1, on_collision)
             coll += wk.collisions
             if keys:
                 kk = np.concatenate(keys)
                 vv = np.concatenate(vals)
                 uk, inv = np.unique(kk, return_inverse=True)
-                sums = np.bincount(inv, weights=vv)
+                sums = np.bincount(inv, weights=vv) * power
                 px_of = uk % npx
                 pix_stats.add_sums(m, np.bincount(px_of, weights=sums, minlength=npx),
                                    np.bincount(px_of, weights=sums * sums, minlength=npx))
@@ -770,7 +781,7 @@ def sphere(sigma_s, sigma_a, g: float, eta: float, radius: float, light_dir, vie
                 pix_stats.add_sums(m, np.zeros(npx), np.zeros(npx))
             esc = wk.exit1[:, 0]
             fl, es = flux.totals(m), est.totals(m)
-            scal.add(np.stack([fl, esc, es, es - esc, wk.exit0[:, 0], wk.absorbed], axis=1))
+            scal.add(power * np.stack([fl, esc, es, es - esc, wk.exit0[:, 0], wk.absorbed], axis=1))
             done += m
         k = math.pi / area
         img[c] = (pix_stats.mean * k).reshape(npix, npix)
