@@ -52,7 +52,7 @@ def test_fresnel_normal_tir_and_reciprocity():
 @pytest.mark.parametrize("g", [0.0, 0.5, 0.9, -0.3])
 def test_hg_sampling_matches_density(g):
     rng = np.random.default_rng(3)
-    c = V._hg_cos(g, rng.random(200_000))
+    c = V.hg_sample_cos(g, rng.random(200_000))
     assert c.mean() == pytest.approx(g, abs=K * c.std() / math.sqrt(c.size))  # E[cos] = g
     hist, edges = np.histogram(c, bins=20, range=(-1, 1))
     x, w = np.polynomial.legendre.leggauss(40)
@@ -70,7 +70,7 @@ def test_deflection_keeps_angle_and_unit_length():
     u /= np.linalg.norm(u, axis=0)
     u[:, :4] = [[0, 0, 1, 0], [0, 0, 0, 1], [1, -1, -0.0, 0.0]]   # the poles, and both sides of uz = 0
     ct = rng.uniform(-1, 1, 1000)
-    n = np.array(V._deflect(u[0], u[1], u[2], ct, rng.uniform(0, 2 * math.pi, 1000)))
+    n = np.array(V.deflect(u[0], u[1], u[2], ct, rng.uniform(0, 2 * math.pi, 1000)))
     np.testing.assert_allclose(np.linalg.norm(n, axis=0), 1.0, atol=1e-12)
     np.testing.assert_allclose((n * u).sum(axis=0), ct, atol=1e-12)
 
