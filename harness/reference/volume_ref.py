@@ -223,13 +223,12 @@ class _Sphere:
 @dataclass
 class _Walk:
     """Per-path analog tallies of one batch: weight leaving through each face (order 0 =
-    unscattered, >= 1 scattered), weight absorbed; plus counters."""
+    unscattered, >= 1 scattered), weight absorbed, and the number of collisions."""
 
     exit0: np.ndarray      # (n, faces) unscattered
     exit1: np.ndarray      # (n, faces) scattered at least once
     absorbed: np.ndarray   # (n,)
     collisions: int
-    unfinished: int
 
 
 def _walk(rng, start, sigma_s: float, sigma_a: float, g: float, eta: float, geom, n_faces: int,
@@ -293,7 +292,7 @@ def _walk(rng, start, sigma_s: float, sigma_a: float, g: float, eta: float, geom
             pid, order, x, y, z, ux, uy, uz, w = (a[keep] for a in (pid, order, x, y, z, ux, uy, uz, w))
     if pid.size:
         raise RuntimeError(f"{pid.size} paths still running after {max_steps} steps (their weight would be lost)")
-    return _Walk(exit0, exit1, absorbed, collisions, 0)
+    return _Walk(exit0, exit1, absorbed, collisions)
 
 
 class _Stats:
