@@ -166,6 +166,53 @@ TEST(RandomWalk, SingleScatteringThroughASlab) {
     EXPECT_LT(e.se.r, 0.02 * exact);
 }
 
+// Single scattering in a slab with every internal reflection: the beam mirrored a = 0, 1, 2
+// times by the faces before it scatters (the walk's next-event paths) and the scattered light
+// mirrored b times before it leaves toward the eye (the walk's own Fresnel reflections). Each
+// term is an exponential in depth, integrated in closed form. Forward scattering (g 0.9) makes
+// the mirrored beam matter: the back face sends it toward the eye at a small angle.
+TEST(RandomWalk, SingleScatteringOfASlabWithItsInternalReflections) {
+    const double eta = 1.3, g = 0.9, d = 1.0, ws = 1e-4;
+    Medium m;
+    m.sigma_s = Rgb(ws);
+    m.sigma_a = Rgb(1.0 - ws);  // sigma_t = 1
+    m.g = Rgb(g);
+    m.eta = eta;
+    const RandomWalk rw(m, settings());
+    const Vec3 l = dir_deg(45, 180), v = dir_deg(30);  // the beam travels toward +x, the eye sees it from +x
+    SlabScene scene(d, l);
+    const Estimate e = run(rw, scene, Vec3(0, 0, 1), v, 100000, 9);
+    Vec3 tl, tv;
+    ASSERT_TRUE(refract_into(-l, Vec3(0, 0, 1), eta, &tl));
+    ASSERT_TRUE(refract_into(-v, Vec3(0, 0, 1), eta, &tv));
+    const double a0 = -tl.z, b0 = -tv.z;  // refracted cosines
+    const double fa = fresnel_dielectric(a0, 1.0 / eta), fb = fresnel_dielectric(b0, 1.0 / eta);
+    const double E = l.z * (1 - fresnel_dielectric(l.z, eta)) / a0;
+    double inside = 0, missing = 0, direct = 0;
+    for (int a = 0; a <= 8; a++) {
+        for (int b = 0; b <= 8; b++) {
+            // beam after a reflections: going down (a even) or up; depth z in [0, d]:
+            // its length is (a d + z)/a0 going down, ((a + 1) d - z)/a0 going up; the same for
+            // the eye's path with b reflections.
+            const double sa = a % 2 == 0 ? 1 : -1, sb = b % 2 == 0 ? 1 : -1;
+            const Vec3 beam(tl.x, tl.y, a % 2 == 0 ? tl.z : -tl.z);
+            const Vec3 out(-tv.x, -tv.y, b % 2 == 0 ? -tv.z : tv.z);  // the light's direction toward the eye
+            const double p = henyey_greenstein(dot(beam, out), g);
+            const double c0 = (a % 2 == 0 ? a * d : (a + 1) * d) / a0 + (b % 2 == 0 ? b * d : (b + 1) * d) / b0;
+            const double k = sa / a0 + sb / b0;  // exponent: -(c0 + k z)
+            const double integral = std::fabs(k) < 1e-12 ? d * std::exp(-c0) : std::exp(-c0) * (1 - std::exp(-k * d)) / k;
+            const double term = std::pow(fa, a) * std::pow(fb, b) * ws * p * E * integral / b0;
+            (a <= 2 ? inside : missing) += term;
+            if (a == 0) direct += term;
+        }
+    }
+    const double exact = kPi * (1 - fresnel_dielectric(v.z, eta)) / (eta * eta) * inside;
+    EXPECT_LT(missing, 1e-4 * inside);       // orders the walk does not follow
+    EXPECT_GT(inside - direct, 0.1 * inside);  // the mirrored beam is a tenth or more of it
+    EXPECT_NEAR(e.mean.r, exact, 4 * e.se.r + 3e-4 * exact);
+    EXPECT_LT(e.se.r, 0.03 * exact);
+}
+
 // No absorption, index-matched, isotropic: what enters a slab leaves it. With the light
 // straight on, the reflected and transmitted radiance integrated over the hemispheres (by
 // reciprocity: the walk from each exit direction) adds up to the light that entered.

@@ -81,53 +81,101 @@ RandomWalk::RandomWalk(const Medium& medium, const WalkSettings& settings) : set
     g_ = medium.g;
 }
 
+bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int reflections, Vec3 w, BeamPath* out,
+                           double floor, std::uint64_t& state) const {
+    constexpr int kMax = 4;
+    Vec3 normals[kMax];
+    for (int step = 0; step < settings_.fixed_point_steps; step++) {
+        // from v along w, mirrored at `reflections` faces, to the face where the light enters
+        Vec3 o = v, dir = w;
+        double length = 0, mirror = 1;
+        WalkScene::Hit h{};
+        for (int j = 0; j < reflections; j++) {
+            if (!scene.leave(o, dir, &h)) return false;
+            const double c = dot(dir, h.n);
+            if (!(c > 0)) return false;
+            length += h.t;
+            mirror *= fresnel_dielectric(c, 1.0 / eta_);
+            if (j == 0 && step == 0) {
+                // a reflected beam that would arrive weaker than `floor` in every channel is
+                // followed by roulette (unbiased): a deep vertex's mirrored light is negligible
+                const double bound = mirror * exp_neg(sigma_t_, length).max_component();
+                if (bound < floor) {
+                    if (!(uniform_double(splitmix64(state)) * floor < bound)) return false;
+                    out->keep = bound / floor;
+                } else {
+                    out->keep = 1.0;
+                }
+            }
+            normals[j] = h.n;
+            dir = normalize(dir - h.n * (2.0 * c));
+            o = h.p;
+        }
+        if (reflections == 0) out->keep = 1.0;
+        if (!scene.leave(o, dir, &h)) return false;
+        length += h.t;
+        Vec3 to_light, along;  // at the entry point: toward the light, and the refracted beam
+        if (!scene.light_direction(light, h.p, &to_light)) return false;
+        if (!(dot(to_light, h.n) > 0)) return false;  // the light is behind the face it would enter
+        if (eta_ == 1.0)
+            along = -to_light;
+        else if (!refract_into(-to_light, h.n, eta_, &along))
+            return false;
+        // the beam back to v: mirrored at the same faces in the opposite order
+        for (int j = reflections - 1; j >= 0; j--) along = normalize(along - normals[j] * (2.0 * dot(along, normals[j])));
+        const Vec3 next = -along;
+        if (dot(next, w) > 1.0 - 1e-12) {
+            out->entry = h;
+            out->to_light = to_light;
+            out->w = w;
+            out->length = length;
+            out->mirror = mirror;
+            out->cos_t = std::max(0.0, dot(dir, h.n));
+            return true;
+        }
+        w = next;
+    }
+    return false;
+}
+
 Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
                            std::uint64_t& state) const {
     Rgb sum(0.0);
     const int lights = scene.light_count();
+    const int reflections = eta_ == 1.0 ? 0 : std::min(settings_.beam_reflections, 4);
     for (int i = 0; i < lights; i++) {
-        Vec3 w;  // from v toward the point where the light enters
-        if (!scene.light_direction(i, v, &w)) continue;
-        WalkScene::Hit h{};
-        Vec3 to_light, along;  // at the entry point: toward the light, and the refracted beam
-        bool found = false;
-        for (int step = 0; step < settings_.fixed_point_steps; step++) {
-            if (!scene.leave(v, w, &h)) break;
-            if (!scene.light_direction(i, h.p, &to_light)) break;
-            if (!(dot(to_light, h.n) > 0)) break;  // the light is behind the face it would enter
-            if (eta_ == 1.0)
-                along = -to_light;
-            else if (!refract_into(-to_light, h.n, eta_, &along))
-                break;
-            const Vec3 next = -along;
-            if (dot(next, w) > 1.0 - 1e-12) {
-                found = true;
-                break;
+        Vec3 to_light;
+        if (!scene.light_direction(i, v, &to_light)) continue;
+        Vec3 beam_dir = -to_light;  // where the beam goes inside, roughly: the first guess of each path
+        for (int k = 0; k <= reflections; k++) {
+            BeamPath b;
+            // k = 0: toward the light; k odd: along the beam (to the face that mirrors it back);
+            // k even: against it
+            const Vec3 guess = k == 0 ? to_light : (k % 2 == 1 ? beam_dir : -beam_dir);
+            g_light_paths.fetch_add(1, std::memory_order_relaxed);
+            if (!beam_path(scene, i, v, k, guess, &b, floor, state)) continue;
+            if (k == 0) beam_dir = -b.w;
+            const double cos_i = dot(b.to_light, b.entry.n), cos_t = b.cos_t;
+            if (!(cos_i > 0 && cos_t > 0)) continue;
+            // the beam's irradiance across its own direction inside: what crosses a unit of
+            // surface (c cos_i Ft) spread over cos_t of it; a flat mirror keeps it, times F
+            const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t * b.mirror / b.keep;
+            const Rgb tr = exp_neg(sigma_t_, b.length);
+            const double cos_phase = dot(b.w, d);  // light along -w, scattered to -d
+            Rgb f;
+            for (int ch = 0; ch < 3; ch++) f[ch] = beta[ch] * beam * tr[ch] * henyey_greenstein(cos_phase, g_[ch]);
+            if (!(f.max_component() > 0)) continue;
+            // the shadow test (the costly part: a ray through the scene) by roulette where the
+            // beam arrives weaker than `floor` of its strength in every channel (unbiased)
+            const double most = tr.max_component() * b.mirror;
+            double keep = 1.0;
+            if (most < floor && k == 0) {
+                keep = most / floor;
+                if (!(uniform_double(splitmix64(state)) < keep)) continue;
             }
-            w = next;
+            const Rgb c = scene.light_colour(i, b.entry.p, b.entry.n, b.to_light);
+            sum += c * f * (1.0 / keep);
         }
-        g_light_paths.fetch_add(1, std::memory_order_relaxed);
-        if (!found) continue;
-        const double cos_i = dot(to_light, h.n), cos_t = dot(w, h.n);
-        if (!(cos_i > 0 && cos_t > 0)) continue;
-        // the beam's irradiance across its own direction inside: what crosses a unit of
-        // surface (c cos_i Ft) spread over cos_t of it
-        const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t;
-        const Rgb tr = exp_neg(sigma_t_, h.t);
-        const double cos_phase = dot(w, d);  // light along -w, scattered to -d
-        Rgb f;
-        for (int ch = 0; ch < 3; ch++) f[ch] = beta[ch] * beam * tr[ch] * henyey_greenstein(cos_phase, g_[ch]);
-        // the shadow test (the costly part: a ray through the scene) by roulette where the beam
-        // arrives weaker than `floor` of its strength in every channel (unbiased)
-        if (!(f.max_component() > 0)) continue;
-        const double most = tr.max_component();
-        double keep = 1.0;
-        if (most < floor) {
-            keep = most / floor;
-            if (!(uniform_double(splitmix64(state)) < keep)) continue;
-        }
-        const Rgb c = scene.light_colour(i, h.p, h.n, to_light);
-        sum += c * f * (1.0 / keep);
     }
     return sum;
 }

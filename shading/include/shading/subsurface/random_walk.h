@@ -20,6 +20,9 @@
 //    converges in a few steps on curved ones), arrives as a collimated beam of irradiance
 //    E c cos_i Ft(cos_i) / cos_t across its own direction, is attenuated by exp(-sigma_t s)
 //    over the distance s from x_i, and scatters by the phase function into the walk.
+//    The beam's own internal reflections are followed the same way (a path from v mirrored at
+//    one or two faces before it reaches x_i, times the Fresnel reflectances): in a thin sheet
+//    of a forward-scattering medium, the beam its back face mirrors lights the front.
 //    Shadows, spotlights and light colours are the renderer's, asked at x_i; where the
 //    light could add little (a deep vertex), the shadow test is made by roulette.
 // Russian roulette on the largest channel weight bounds the walk without bias.
@@ -66,6 +69,9 @@ struct WalkSettings {
     // Shadow rays for a beam attenuated below this (exp(-sigma_t s) in every channel: a deep
     // vertex) are traced by roulette, with probability attenuation / light_floor.
     double light_floor = 1e-2;
+    // Internal reflections of the unscattered beam followed by next-event estimation (eta != 1):
+    // a forward-scattering sheet sees the beam its back face mirrors (up to 4).
+    int beam_reflections = 2;
 };
 
 // Counters of every walk of the process (relaxed atomics: statistics only).
@@ -91,6 +97,18 @@ public:
     Rgb walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t& rng_state) const;
 
 private:
+    // A light's beam from where it enters to a scattering point v, mirrored on the way at
+    // `reflections` faces (internal Fresnel reflection of the unscattered beam).
+    struct BeamPath {
+        WalkScene::Hit entry{};  // where the light enters (outward normal)
+        Vec3 to_light, w;        // at the entry: toward the light; at v: toward the first face
+        double length = 0;       // inside the medium
+        double mirror = 1;       // product of the Fresnel reflectances on the way
+        double cos_t = 0;        // cosine of the refracted beam with the inward normal at the entry
+        double keep = 1;         // roulette survival probability of a mirrored beam
+    };
+    bool beam_path(WalkScene& scene, int light, const Vec3& v, int reflections, Vec3 w, BeamPath* out,
+                   double floor, std::uint64_t& state) const;
     // Light from every light scattered at v toward -d, times the walk's weight beta; a beam
     // attenuated below `floor` in every channel is shadow-tested by roulette.
     Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
