@@ -223,7 +223,7 @@ test-all: all venv brdf-data ## Everything in `test` plus the slow renders
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
 	$(PY) -m pytest -q
 
-bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-sphere grid, every model, dipole/stock subsurface, exact/dipole profile), glossy noise, profile table build times, image errors, thin geometry (slab totals vs Monte Carlo, back-lit sheets, cost)
+bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-sphere grid, every model, dipole/stock subsurface, exact/dipole profile), glossy noise, profile table build times, image errors, thin geometry (slab totals vs Monte Carlo, back-lit sheets, cost), subsurface in real geometry (profile and random walk vs the volumetric reference)
 	$(PY) -m harness.reports.bench
 	$(PY) -m harness.reports.glossy_noise
 	$(PY) -m harness.reports.table_error
@@ -231,6 +231,7 @@ bench: all venv brdf-data ## Trace-time ratios (fork/stock, table/phong, the 25-
 	$(PY) -m harness.reports.dipole_bench
 	$(PY) -m harness.reports.ss_bench
 	$(PY) -m harness.reports.thin_bench
+	$(PY) -m harness.reports.walk_bench
 
 dg-compare: all venv ## The four D and two G terms at equal roughness: out/dg/dg.png and an error table
 	$(PY) -m harness.reports.dg_compare

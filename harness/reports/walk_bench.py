@@ -1,0 +1,289 @@
+"""Subsurface in real geometry (issue 31): the dipole finish's profile method and its random walk,
+both rendered by the fork at default settings, against the independent volumetric reference
+(:mod:`harness.reference.volume_ref`, a numpy photon tracer sharing no code with the library),
+with the reference's own noise, the render times and each method's error.
+
+Scenes (lengths in mm, ``mm_per_unit 1``, parallel light of colour 1, orthographic cameras):
+
+* **edge**: a 200 x 200 x 60 mm block lit past the edge of a black ``no_image`` plate that shades
+  x < 0, light at 0, 45 and 70 degrees (the beam travels toward the lit side, +x), camera straight
+  down; row-averaged profile at x = -5 .. 5 mm (21 points); error = max |render - reference| as a
+  fraction of the reference's lit plateau, and the plateau's own error (the rightmost point
+  against the reference there);
+* **sheet**: a 240 mm wide sheet of thickness d = 0.25, 1, 4, 16 transport mean free paths of the
+  channel with the longest one, lit straight from above, seen at 0 and 45 degrees from above
+  (reflected) and below (transmitted): the centre pixels' mean against ``volume_ref.sheet``;
+* **sphere**: radius 1, 3 and 10 diffusion lengths (of the channel that reaches furthest), eta 1
+  (the reference's sphere is index-matched), light from normalize(1, 0.5, 1), camera from +z:
+  total flux, and the per-pixel relative rms over pixels fully inside the silhouette (the render
+  at 4x the reference's resolution, averaged over each reference pixel).
+
+Media: published coefficients (Jensen et al. 2001, Table 2: sigma_s', sigma_a in 1/mm), with
+``anisotropy`` g and sigma_s = sigma_s' / (1 - g), and the ``ior`` of the run.
+
+    python -m harness.reports.walk_bench [--scenes edge,sheet,sphere] [--media Skin1,Ketchup]
+        [--eta 1.0,1.3] [--g 0,0.9] [--samples 64] [--paths 40000] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import numpy as np
+
+from harness.core import runner
+from harness.reference import volume_ref
+
+#: Jensen et al. 2001, Table 2: sigma_s' and sigma_a (1/mm), RGB.
+MEDIA = {
+    "Skin1": ((0.74, 0.88, 1.01), (0.032, 0.17, 0.48)),
+    "Marble": ((2.19, 2.62, 3.00), (0.0021, 0.0041, 0.0071)),
+    "Ketchup": ((0.18, 0.07, 0.03), (0.061, 0.97, 1.45)),
+    "Skimmilk": ((0.70, 1.22, 1.90), (0.0014, 0.0025, 0.0142)),
+}
+
+
+def coefficients(name: str, g: float):
+    sp, sa = (np.array(v, float) for v in MEDIA[name])
+    return sp / (1.0 - g), sa
+
+
+def medium_text(name: str, g: float, eta: float) -> str:
+    ss, sa = coefficients(name, g)
+    v = lambda a: "<" + ", ".join(f"{x:.10g}" for x in a) + ">"
+    return f"sigma_s {v(ss)} sigma_a {v(sa)} anisotropy {g} ior {eta} mm_per_unit 1"
+
+
+def longest_mfp(name: str) -> float:
+    sp, sa = (np.array(v, float) for v in MEDIA[name])
+    return float((1.0 / (sp + sa)).max())
+
+
+def diffusion_length(name: str) -> float:
+    sp, sa = (np.array(v, float) for v in MEDIA[name])
+    return float((1.0 / np.sqrt(3 * sa * (sp + sa))).max())
+
+
+def vec(a) -> str:
+    return "<" + ", ".join(f"{x:.12g}" for x in a) + ">"
+
+
+def render(text: str, w: int, h: int, fork):
+    r = runner.render(text, fork, width=w, height=h, float_exr=True, threads=2)
+    img = r.image[..., :3].astype(np.float64)
+    if not np.isfinite(img).all():
+        raise AssertionError("NaN in the render")
+    return img, r.trace_seconds if r.trace_seconds is not None else r.wall_seconds
+
+
+EDGE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 0, 80> direction <0, 0, -1> right <{width}, 0, 0> up <0, {height}, 0> }}
+light_source {{ {light} * 1000 rgb 1 parallel point_at <0, 0, 0> }}
+box {{ <-100, -100, 0.0005>, <0, 100, 0.001> pigment {{ rgb 0 }} finish {{ ambient 0 diffuse 0 }} no_image }}
+box {{ <-100, -100, -60>, <100, 100, 0> texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} }} }} }}
+"""
+
+
+def edge_rows(args, fork) -> list[dict]:
+    rows = []
+    nx, step, ny = 21, 0.5, 8
+    xs = (np.arange(nx) - (nx - 1) / 2) * step
+    for name in args.media:
+        for eta in args.eta:
+            for g in args.g:
+                ss, sa = coefficients(name, g)
+                for angle in args.angles:
+                    t = math.radians(angle)
+                    to_light = np.array([-math.sin(t), 0.0, math.cos(t)])
+                    t0 = time.perf_counter()
+                    ref = volume_ref.shadow_edge(ss, sa, g, eta, to_light, xs, n_paths=args.paths, seed=11)
+                    ref_s = time.perf_counter() - t0
+                    plateau = ref.plateau
+                    row = dict(scene="edge", medium=name, eta=eta, g=g, angle=angle, ref_seconds=ref_s,
+                               ref_noise=float((ref.plateau_err / plateau).max()))
+                    for method, extra in (("profile", ""), ("walk", f" method random_walk samples {args.samples}")):
+                        text = EDGE.format(width=nx * step, height=ny * step, light=vec(to_light),
+                                           dipole=medium_text(name, g, eta) + extra)
+                        img, sec = render(text, nx, ny, fork)
+                        prof = img.mean(0).T  # (3, nx)
+                        diff = np.abs(prof - ref.radiance) / plateau[:, None]
+                        row[method] = dict(max_diff=float(diff.max()),
+                                           plateau=float(np.abs(prof[:, -1] / ref.radiance[:, -1] - 1).max()),
+                                           edge=(prof[:, nx // 2] / plateau).round(3).tolist(), seconds=sec)
+                    row["ref_edge"] = (ref.radiance[:, nx // 2] / plateau).round(3).tolist()
+                    rows.append(row)
+                    report(row)
+    return rows
+
+
+SHEET = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location {loc} direction {dir} right {right} up {up} }}
+light_source {{ <0, 0, 1000> rgb 1 parallel point_at <0, 0, 0> }}
+box {{ <-120, -120, {bottom}>, <120, 120, 0> texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} }} }} }}
+"""
+
+
+def sheet_rows(args, fork) -> list[dict]:
+    rows = []
+    for name in args.media:
+        for eta in args.eta:
+            for g in args.g:
+                ss, sa = coefficients(name, g)
+                for mfps in args.thickness:
+                    d = mfps * longest_mfp(name)
+                    views = []
+                    for side in (1, -1):
+                        for angle in (0, 45):
+                            t = math.radians(angle)
+                            views.append((side, angle, np.array([math.sin(t), 0.0, side * math.cos(t)])))
+                    t0 = time.perf_counter()
+                    ref = volume_ref.sheet(ss, sa, g, eta, d, [0, 0, 1], np.array([v for _, _, v in views]),
+                                           n_paths=args.paths, seed=13)
+                    ref_s = time.perf_counter() - t0
+                    for k, (side, angle, view) in enumerate(views):
+                        want, want_err = ref.radiance[:, k], ref.radiance_err[:, k]
+                        right = np.cross([0.0, 1.0, 0.0], view)
+                        right /= np.linalg.norm(right)
+                        up = np.cross(view, right)
+                        cam = dict(loc=vec((60 * view) + np.array([0, 0, -d if side < 0 else 0])),
+                                   dir=vec(-view), right=vec(2 * right), up=vec(2 * up))
+                        row = dict(scene="sheet", medium=name, eta=eta, g=g, mfp=mfps, d=d,
+                                   side="reflected" if side > 0 else "transmitted", view=angle,
+                                   ref=want.tolist(), ref_seconds=ref_s / len(views),
+                                   ref_noise=float(np.max(want_err / np.maximum(want, 1e-30))))
+                        for method, extra in (("profile", ""), ("walk", f" method random_walk samples {args.samples}")):
+                            img, sec = render(SHEET.format(bottom=-d, dipole=medium_text(name, g, eta) + extra, **cam),
+                                              8, 8, fork)
+                            got = img.reshape(-1, 3).mean(0)
+                            rel = np.where(want > 1e-6, got / np.maximum(want, 1e-30) - 1, 0.0)
+                            row[method] = dict(error=float(np.abs(rel).max()), value=got.tolist(), seconds=sec)
+                        rows.append(row)
+                        report(row)
+    return rows
+
+
+SPHERE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 0, {far}> direction <0, 0, -1> right {right} up {up} }}
+light_source {{ {light} * 1000 rgb 1 parallel point_at <0, 0, 0> }}
+sphere {{ 0, {r} texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} }} }} }}
+"""
+
+
+def sphere_rows(args, fork) -> list[dict]:
+    rows = []
+    n, over = 16, 4
+    light = np.array([1.0, 0.5, 1.0]) / 1.5
+    view = np.array([0.0, 0.0, 1.0])
+    right, up = volume_ref.image_axes(view)
+    for name in args.media:
+        for g in args.g:
+            ss, sa = coefficients(name, g)
+            for lengths in args.radii:
+                r = lengths * diffusion_length(name)
+                t0 = time.perf_counter()
+                ref = volume_ref.sphere(ss, sa, g, 1.0, r, light, view, npix=n, n_paths=args.paths, seed=17)
+                ref_s = time.perf_counter() - t0
+                span = 2.2 * r
+                row = dict(scene="sphere", medium=name, eta=1.0, g=g, lengths=lengths, radius=r, ref_seconds=ref_s,
+                           ref_noise=float((ref.flux_err / ref.flux).max()))
+                # pixels whose whole area is inside the silhouette
+                c = (np.arange(n) + 0.5) / n * span - span / 2
+                yy, xx = np.meshgrid(-c, c, indexing="ij")
+                half = span / n / 2
+                inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
+                for method, extra in (("profile", ""), ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
+                    text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
+                                           dipole=medium_text(name, g, 1.0) + extra)
+                    img, sec = render(text, n * over, n * over, fork)
+                    small = img.reshape(n, over, n, over, 3).mean((1, 3)).transpose(2, 0, 1)  # (3, n, n)
+                    flux = small.sum((1, 2)) * (span / n) ** 2
+                    rms = []
+                    for ch in range(3):
+                        # pixels inside the silhouette where the reference is above a tenth of its peak
+                        use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
+                        rel = small[ch][use] / ref.image[ch][use] - 1
+                        rms.append(float(np.sqrt(np.mean(rel ** 2))))
+                    row[method] = dict(flux=float(np.abs(flux / ref.flux - 1).max()), rms=max(rms), seconds=sec)
+                noise = []
+                for ch in range(3):
+                    use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
+                    noise.append(float(np.sqrt(np.mean((ref.image_err[ch][use] / ref.image[ch][use]) ** 2))))
+                row["ref_pixel_noise"] = max(noise)
+                rows.append(row)
+                report(row)
+    return rows
+
+
+def report(row: dict) -> None:
+    head = f"{row['scene']:6s} {row['medium']:8s} eta {row['eta']:.1f} g {row['g']:.1f}"
+    if row["scene"] == "edge":
+        head += f" light {row['angle']:2d}"
+        p, w = row["profile"], row["walk"]
+        body = (f"| profile max {100 * p['max_diff']:6.2f} % plateau {100 * p['plateau']:5.2f} % edge {p['edge']} "
+                f"{p['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
+                f"edge {w['edge']} {w['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
+    elif row["scene"] == "sheet":
+        head += f" d {row['mfp']:5.2f} mfp {row['side']:11s} view {row['view']:2d}"
+        p, w = row["profile"], row["walk"]
+        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
+                f"{w['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
+    else:
+        head += f" R {row['lengths']:4.1f} ld"
+        p, w = row["profile"], row["walk"]
+        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {100 * p['rms']:6.2f} % {p['seconds']:6.2f} s | walk flux "
+                f"{100 * w['flux']:6.2f} % rms {100 * w['rms']:6.2f} % {w['seconds']:6.2f} s | ref noise "
+                f"{100 * row['ref_noise']:.2f} % (flux), {100 * row['ref_pixel_noise']:.2f} % (pixel rms)")
+    print(head, body, flush=True)
+
+
+def floats(text: str) -> list[float]:
+    return [float(x) for x in text.split(",") if x]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", default="edge,sheet,sphere")
+    ap.add_argument("--media", default="Skin1,Ketchup")
+    ap.add_argument("--eta", default="1.0,1.3")
+    ap.add_argument("--g", default="0,0.9")
+    ap.add_argument("--angles", default="0,45,70")
+    ap.add_argument("--thickness", default="0.25,1,4,16", help="sheet thicknesses in mean free paths")
+    ap.add_argument("--radii", default="1,3,10", help="sphere radii in diffusion lengths")
+    ap.add_argument("--samples", type=int, default=512, help="random walks per pixel (spheres: a quarter, at 16 pixels per reference pixel)")
+    ap.add_argument("--paths", type=int, default=200000, help="reference paths per channel")
+    ap.add_argument("--quick", action="store_true", help="one medium, eta, g and angle: a smoke run")
+    ap.add_argument("--fork", default="fork")
+    args = ap.parse_args(argv)
+    args.media = [m for m in args.media.split(",") if m]
+    for m in args.media:
+        if m not in MEDIA:
+            ap.error(f"--media {m}: one of {', '.join(MEDIA)}")
+    args.eta, args.g = floats(args.eta), floats(args.g)
+    args.angles = [int(a) for a in floats(args.angles)]
+    args.thickness, args.radii = floats(args.thickness), floats(args.radii)
+    if args.quick:
+        args.media, args.eta, args.g, args.angles = args.media[:1], args.eta[-1:], args.g[:1], [45]
+        args.thickness, args.radii = [1.0], [3.0]
+    scenes = [s for s in args.scenes.split(",") if s]
+    print("subsurface in real geometry: the profile method and the random walk against volume_ref "
+          f"(samples {args.samples}, reference {args.paths} paths per channel)")
+    for s in scenes:
+        if s == "edge":
+            edge_rows(args, args.fork)
+        elif s == "sheet":
+            sheet_rows(args, args.fork)
+        elif s == "sphere":
+            sphere_rows(args, args.fork)
+        else:
+            ap.error(f"--scenes: unknown scene {s!r}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
