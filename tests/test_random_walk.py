@@ -171,3 +171,27 @@ def test_blob_has_no_patches(fork):
     # measuring: the walk below 0.15, and the check must see the profile's patches (above 0.3)
     assert cw < 0.15
     assert cp > 0.3
+
+
+def test_auto_walks_small_objects_and_profiles_large_ones(fork):
+    """`method auto`: a thick slab keeps the profile (the same pixels as `method profile`, single
+    scattering now added at the lookup instead of by the BRDF: within 1e-6), a sphere 2 diffusion
+    lengths across is walked (the same pixels as `method random_walk`), and the statistics say so."""
+    theta = math.radians(45)
+    to_light = [-math.sin(theta), 0.0, math.cos(theta)]
+    slab = {m: EDGE.format(width=10, height=2, light=vec(to_light), edge=-0.002 * math.tan(theta),
+                           dipole=f'"Skin1" mm_per_unit 1 method {m}') for m in ("profile", "auto")}
+    a = runner.render(slab["profile"], fork, width=20, height=4, float_exr=True, threads=2)
+    b = runner.render(slab["auto"], fork, width=20, height=4, float_exr=True, threads=2)
+    assert np.abs(b.image - a.image).max() <= 1e-6 * a.image.max()
+    assert "Dipole method auto: 0 walked, 1 by profile" in b.stderr
+    sphere = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 0, 50> direction <0, 0, -1> right <9, 0, 0> up <0, 9, 0> }}
+light_source {{ <1, 0.5, 1> * 1000 rgb 1 parallel point_at <0, 0, 0> }}
+sphere {{ 0, 3.6 texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "Skin1" mm_per_unit 1 method {m} samples 8 }} }} }} }}
+"""
+    w = runner.render(sphere.format(m="random_walk"), fork, width=24, height=24, float_exr=True, threads=2)
+    u = runner.render(sphere.format(m="auto"), fork, width=24, height=24, float_exr=True, threads=2)
+    assert np.array_equal(w.image, u.image)
+    assert "Dipole method auto: 1 walked, 0 by profile" in u.stderr

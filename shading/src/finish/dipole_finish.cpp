@@ -3,6 +3,7 @@
 #include "shading/finish/dipole_finish.h"
 
 #include <cstdio>
+#include <algorithm>
 #include <cstring>
 #include <stdexcept>
 
@@ -163,7 +164,7 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (p.refine_levels) settings.max_levels = *p.refine_levels;
     if (p.thin_geometry) settings.thin = *p.thin_geometry;
     if (p.samples) settings.walk.samples = *p.samples;
-    if (p.random_walk) {
+    if (p.method == DipoleParams::Method::RandomWalk) {
         // exact transport: nothing tabulated, single scattering is part of the walk
         settings.method = SubsurfaceSettings::Method::RandomWalk;
         settings.single_scatter = false;
@@ -180,6 +181,13 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     std::shared_ptr<const RadialProfile> profile = exact;
     // the exact profile leaves single scattering to the BRDF; the dipole's Rd stands for it
     settings.single_scatter = p.single_scatter ? *p.single_scatter : p.exact_profile;
+    if (p.method == DipoleParams::Method::Auto) {
+        // walked objects have single scattering in the walk: the profile's objects get it at
+        // each lookup (finish_subsurface_radiance), not from the BRDF the light loop adds
+        settings.method = SubsurfaceSettings::Method::Auto;
+        settings.auto_single_scatter = settings.single_scatter;
+        settings.single_scatter = false;
+    }
     auto subsurface = std::make_shared<const Subsurface>(medium, settings, FdrModel::JensenFit, profile);
     std::shared_ptr<FinishModel> model = finish_model_with_subsurface(coat, subsurface);
     if (exact)
@@ -191,9 +199,35 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
 Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, DipoleObject& object, const Vec3& x,
                                const Vec3& n, const Vec3& to_eye, const std::function<Rgb()>& here) {
     const Subsurface& subsurface = *model.subsurface;
+    const SubsurfaceSettings& settings = subsurface.settings();
+    const bool automatic = settings.method == SubsurfaceSettings::Method::Auto;
     if (const RandomWalk* walk = subsurface.walk()) {
-        Walker walker(object);
-        return walk->radiance(walker, x, n, to_eye, point_seed(x));
+        bool walked = !automatic;
+        if (automatic) {
+            Vec3 lo, hi;
+            double extent = kInf;
+            if (object.bounds(&lo, &hi)) extent = std::min({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+            walked = subsurface.auto_walks(key, extent);
+        }
+        if (walked) {
+            Walker walker(object);
+            return walk->radiance(walker, x, n, to_eye, point_seed(x));
+        }
+    }
+    Rgb single(0.0);
+    if (automatic && settings.auto_single_scatter) {
+        // the single-scattering BRDF of a half-space, lit by every light as the light loop would
+        const Frame frame = Frame::from_normal(n);
+        const Vec3 wo = frame.to_local(to_eye);
+        for (int i = 0, lights = object.light_count(); i < lights; i++) {
+            Vec3 to_light;
+            if (!object.light_direction(i, x, &to_light)) continue;
+            const double cos_i = dot(to_light, n);
+            if (!(cos_i > 0)) continue;
+            const Rgb f = subsurface.dipole().single_scatter_brdf(wo, frame.to_local(to_light));
+            if (!(f.max_component() > 0)) continue;
+            single += object.light_colour(i, x, n, to_light) * f * (kPi * cos_i);
+        }
     }
     Sampler sampler(object);
     const PointCloud& cloud = subsurface.cloud(key, sampler);
@@ -202,7 +236,7 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     // slab threshold somewhere (thick objects: infinity, no ray)
     const double thickness = subsurface.wants_thickness(cloud) ? object.thickness(x, n)
                                                                : std::numeric_limits<double>::infinity();
-    return subsurface.radiance(cloud, x, n, to_eye, e, thickness);
+    return subsurface.radiance(cloud, x, n, to_eye, e, thickness) + single;
 }
 
 std::vector<std::string> finish_statistics() {
@@ -238,6 +272,9 @@ std::vector<std::string> finish_statistics() {
             line("Dipole warning: %.0f more object(s) smaller than 3 diffusion lengths", double(ss.notes.size() - shown));
     }
     const WalkStats ws = random_walk_stats();
+    if (ws.auto_walked + ws.auto_profiled > 0)
+        line("Dipole method auto: %.0f walked, %.0f by profile (walk: < %g diffusion lengths)", double(ws.auto_walked),
+             double(ws.auto_profiled), SubsurfaceSettings().auto_lengths);
     if (ws.walks > 0) {
         line("Dipole random walks: %14.0f         Vertices/walk: %7.1f", double(ws.walks), double(ws.vertices) / double(ws.walks));
         line("Dipole walk lights: %15.0f paths (next-event estimates)", double(ws.light_paths));

@@ -11,7 +11,8 @@
 namespace shading {
 namespace {
 
-std::atomic<std::uint64_t> g_walks{0}, g_vertices{0}, g_light_paths{0}, g_truncated{0};
+std::atomic<std::uint64_t> g_walks{0}, g_vertices{0}, g_light_paths{0}, g_truncated{0}, g_auto_walked{0},
+    g_auto_profiled{0};
 
 Rgb exp_neg(const Rgb& sigma, double t) {
     return Rgb(std::exp(-sigma.r * t), std::exp(-sigma.g * t), std::exp(-sigma.b * t));
@@ -33,14 +34,20 @@ WalkStats random_walk_stats() {
     s.vertices = g_vertices.load(std::memory_order_relaxed);
     s.light_paths = g_light_paths.load(std::memory_order_relaxed);
     s.truncated = g_truncated.load(std::memory_order_relaxed);
+    s.auto_walked = g_auto_walked.load(std::memory_order_relaxed);
+    s.auto_profiled = g_auto_profiled.load(std::memory_order_relaxed);
     return s;
 }
+
+void random_walk_count_auto(bool walked) { (walked ? g_auto_walked : g_auto_profiled).fetch_add(1, std::memory_order_relaxed); }
 
 void random_walk_stats_reset() {
     g_walks = 0;
     g_vertices = 0;
     g_light_paths = 0;
     g_truncated = 0;
+    g_auto_walked = 0;
+    g_auto_profiled = 0;
 }
 
 Vec3 sample_henyey_greenstein(const Vec3& axis, double g, double u1, double u2) {

@@ -28,10 +28,10 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     if (!model_) model_ = std::make_shared<const DipoleRadialProfile>(dipole_);
     profile_ = make_rd_profile(model_);
     reach_ = profile_->radius_containing(0.99);
-    if (settings_.method == SubsurfaceSettings::Method::RandomWalk) {
+    if (settings_.method != SubsurfaceSettings::Method::Profile)
         walk_ = std::make_unique<const RandomWalk>(medium, settings_.walk);
+    if (settings_.method == SubsurfaceSettings::Method::RandomWalk)
         return;  // no cloud, no slabs: the walk is exact in any geometry
-    }
     if (settings_.thin) {
         slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
         const double d_min = kSlabMinMfp * mean_free_path();
@@ -47,6 +47,17 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
 Subsurface::~Subsurface() = default;
 
 double Subsurface::mean_free_path() const { return model_->mean_free_path(); }
+
+bool Subsurface::auto_walks(const void* key, double extent) const {
+    std::lock_guard<std::mutex> lock(auto_mutex_);
+    auto it = auto_choice_.find(key);
+    if (it != auto_choice_.end()) return it->second;
+    // unbounded objects (a plane: a half-space) have no cloud; the walk handles them
+    const bool walk = !(extent < kInf) || extent < settings_.auto_lengths * diffusion_length();
+    auto_choice_.emplace(key, walk);
+    random_walk_count_auto(walk);
+    return walk;
+}
 
 double Subsurface::diffusion_length() const {
     double l = 0;

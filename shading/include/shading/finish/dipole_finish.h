@@ -29,7 +29,10 @@ struct DipoleParams {
     std::optional<bool> single_scatter;                   // default: on with the exact profile
     std::optional<bool> thin_geometry;
     bool exact_profile = true;                            // `profile exact` (default) or `profile dipole`
-    bool random_walk = false;                             // `method random_walk` (default `method profile`)
+    // `method profile` (the default), `method random_walk` or `method auto` (per object:
+    // the walk for objects under 10 diffusion lengths across, the profile elsewhere)
+    enum class Method { Profile, RandomWalk, Auto };
+    Method method = Method::Profile;
     std::optional<int> samples;                           // walks per shaded point (random_walk)
     std::string file;                                     // where the block is written, for its notes
     int line = 0;

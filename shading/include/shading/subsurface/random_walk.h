@@ -77,7 +77,10 @@ struct WalkSettings {
 // Counters of every walk of the process (relaxed atomics: statistics only).
 struct WalkStats {
     std::uint64_t walks = 0, vertices = 0, light_paths = 0, truncated = 0;
+    std::uint64_t auto_walked = 0, auto_profiled = 0;  // method auto: objects
 };
+// `method auto`'s decisions, one per object.
+void random_walk_count_auto(bool walked);
 WalkStats random_walk_stats();
 void random_walk_stats_reset();
 

@@ -39,6 +39,8 @@
 #pragma once
 
 #include <memory>
+#include <mutex>
+#include <unordered_map>
 #include <string>
 
 #include "shading/brdf/brdf.h"
@@ -75,9 +77,15 @@ struct SubsurfaceSettings {
     bool thin = true;
     // `method profile` (the above) or `method random_walk`: exact transport inside the
     // object's own surface (random_walk.h), no cloud, no profile, no single-scattering BRDF.
-    enum class Method { Profile, RandomWalk };
+    // `method auto`: per object, the walk where its smallest bounding-box extent is below
+    // auto_lengths diffusion lengths (small objects, sheets: where the profile's assumptions
+    // fail), the profile elsewhere; single scattering then comes with the profile's lookups
+    // (auto_single_scatter), not from the BRDF, so walked objects do not count it twice.
+    enum class Method { Profile, RandomWalk, Auto };
     Method method = Method::Profile;
     WalkSettings walk;
+    double auto_lengths = 10.0;
+    bool auto_single_scatter = true;
 };
 
 // What one `dipole { }` finish holds: the medium, its settings, the radial profile (the model,
@@ -99,8 +107,11 @@ public:
     const RadialProfile& model() const { return *model_; }
     const std::shared_ptr<const RadialProfile>& model_ptr() const { return model_; }
     const SubsurfaceSettings& settings() const { return settings_; }
-    // The walk of `method random_walk` (null for profiles).
+    // The walk of `method random_walk` and `method auto` (null for profiles).
     const RandomWalk* walk() const { return walk_.get(); }
+    // `method auto`: whether the object `key` (smallest bounding-box extent `extent`, scene
+    // units; infinity: unbounded) is walked. Decided once per object, counted in the statistics.
+    bool auto_walks(const void* key, double extent) const;
 
     // Base sample spacing for an object whose bounding box has the given largest extent: the
     // user's, or the larger of half the smallest channel's mean free path 1/sigma_t' and
@@ -154,7 +165,9 @@ private:
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
-    std::unique_ptr<const RandomWalk> walk_;  // method random_walk: null otherwise
+    std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
+    mutable std::mutex auto_mutex_;
+    mutable std::unordered_map<const void*, bool> auto_choice_;
     CloudCache clouds_;
     std::shared_ptr<const PointCloud> build(const ParallelFor& parallel, SurfaceSampler& sampler) const;
 };
