@@ -26,6 +26,14 @@ import pytest
 from harness.core import runner
 from harness.reference import dipole_ref, volume_ref
 
+#: relative slack beyond 4 combined standard errors (the walk and the references are exact)
+WALK_SLACK = 0.005
+#: the shadow edge's worst point as a fraction of the plateau (issue 31), beyond 4 standard errors
+EDGE_PLATEAU_FRACTION = 0.03
+#: residual neighbour correlation: the walk's image at most, the profile's blob (patches) at least
+BLOB_WALK_CORR = 0.15
+BLOB_PROFILE_CORR = 0.3
+
 SLAB = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}
 camera {{ orthographic location {loc} direction {dir} right {right} up {up} }}
@@ -68,7 +76,7 @@ def test_thick_slab_is_chandrasekhars_half_space(fork):
         exact = w * dipole_ref.chandrasekhar_h(np.array([1.0]), w)[0] ** 2 / 8
         print(f"channel {c}: albedo {w:.4f} pixel {mean[c]:.5f} +- {se[c]:.5f}, exact {exact:.5f} "
               f"({100 * (mean[c] / exact - 1):+.2f} %)")
-        assert abs(mean[c] - exact) < 4 * se[c] + 0.005 * exact
+        assert abs(mean[c] - exact) < 4 * se[c] + WALK_SLACK * exact
 
 
 SHEET_MEDIUM = dict(sigma_s=2.0, sigma_a=0.5, g=0.9, eta=1.3)  # 1/mm: sigma_t 2.5, albedo 0.8
@@ -91,7 +99,7 @@ def test_forward_scattering_sheet_under_slanted_light(fork, side):
     want, want_se = float(ref.radiance[0]), float(ref.radiance_err[0])
     print(f"sheet {side}: pixel {got:.5f} +- {got_se:.5f}, reference {want:.5f} +- {want_se:.5f} "
           f"({100 * (got / want - 1):+.2f} %)")
-    assert abs(got - want) < 4 * math.hypot(got_se, want_se) + 0.005 * want
+    assert abs(got - want) < 4 * math.hypot(got_se, want_se) + WALK_SLACK * want
 
 
 EDGE = """#version 3.7;
@@ -113,7 +121,7 @@ def test_shadow_edge_under_slanted_light(fork):
     to_light = [-math.sin(theta), 0.0, math.cos(theta)]
     rows_n = 12
     scene = EDGE.format(width=nx * step, height=rows_n * step, light=vec(to_light), edge=-0.002 * math.tan(theta),
-                        dipole='"Skin1" mm_per_unit 1 method random_walk samples 256')
+                        dipole='"Skin1" mm_per_unit 1 method random_walk samples 1024')
     img = runner.render(scene, fork, width=nx, height=rows_n, float_exr=True, threads=2).image[..., :3].astype(float)
     assert np.isfinite(img).all()
     rows = img.mean(0)                     # (nx, 3)
@@ -124,7 +132,9 @@ def test_shadow_edge_under_slanted_light(fork):
     for c in range(3):
         plateau = float(ref.plateau[c])
         diff = np.abs(rows[:, c] - ref.radiance[c])
-        allowed = 0.03 * plateau + 4 * np.hypot(rows_se[:, c], ref.radiance_err[c])
+        noise = 4 * np.hypot(rows_se[:, c], ref.radiance_err[c])
+        allowed = EDGE_PLATEAU_FRACTION * plateau + noise
+        print(f"channel {c}: worst |diff| - 4 se = {(diff - noise).max() / plateau:+.4f} of the plateau")
         print(f"channel {c}: plateau {plateau:.4f}, x=+0.25 fork {rows[nx // 2, c] / plateau:.3f} "
               f"reference {ref.radiance[c, nx // 2] / plateau:.3f}, max |diff| {100 * diff.max() / plateau:.2f} % of plateau")
         assert (diff <= allowed).all()
@@ -169,8 +179,8 @@ def test_blob_has_no_patches(fork):
     print(f"blob residual neighbour correlation: random walk {cw:+.3f}, profile {cp:+.3f}")
     # the smoothing itself correlates neighbours' residuals by about -1/25; stated before
     # measuring: the walk below 0.15, and the check must see the profile's patches (above 0.3)
-    assert cw < 0.15
-    assert cp > 0.3
+    assert cw < BLOB_WALK_CORR
+    assert cp > BLOB_PROFILE_CORR
 
 
 def test_auto_walks_small_objects_and_profiles_large_ones(fork):
