@@ -122,6 +122,14 @@ def edge_rows(args, fork) -> list[dict]:
                         row[method] = dict(max_diff=float(diff.max()),
                                            plateau=float(np.abs(prof[:, -1] / ref.radiance[:, -1] - 1).max()),
                                            edge=(prof[:, nx // 2] / plateau).round(3).tolist(), seconds=sec)
+                        if method == "walk":
+                            # the walk's own noise: pixel scatter in the lit quarter (x > 2.25 mm)
+                            lit = img[:, -5:, :].reshape(-1, 3)
+                            rel_px = float((lit.std(0) / lit.mean(0)).max())
+                            per_walk = rel_px * math.sqrt(args.samples)
+                            walk_seconds = 2 * sec / (nx * ny * args.samples)  # 2 threads busy
+                            row[method].update(noise=rel_px / math.sqrt(ny), per_walk=per_walk,
+                                               to_1pc=walk_seconds * (per_walk / 0.01) ** 2)
                     row["ref_edge"] = (ref.radiance[:, nx // 2] / plateau).round(3).tolist()  # x = +0.25 mm
                     rows.append(row)
                     report(row)
@@ -235,7 +243,8 @@ def report(row: dict) -> None:
         p, w = row["profile"], row["walk"]
         body = (f"| profile max {100 * p['max_diff']:6.2f} % plateau {100 * p['plateau']:5.2f} % edge {p['edge']} "
                 f"{p['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
-                f"edge {w['edge']} {w['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
+                f"edge {w['edge']} {w['seconds']:6.2f} s (its noise {100 * w['noise']:.1f} %, per walk {w['per_walk']:.1f}, "
+                f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s) | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
         head += f" d {row['mfp']:5.2f} mfp {row['side']:11s} view {row['view']:2d}"
         p, w = row["profile"], row["walk"]

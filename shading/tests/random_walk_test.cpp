@@ -213,6 +213,30 @@ TEST(RandomWalk, SingleScatteringOfASlabWithItsInternalReflections) {
     EXPECT_LT(e.se.r, 0.03 * exact);
 }
 
+// Guided directions (forward scattering) are weighted by the mixture of both lobes: the same
+// expectation as the phase function's own sampling, with every channel of a medium whose
+// channels differ in g, and less variance where the walk is short.
+TEST(RandomWalk, GuidedDirectionsKeepTheExpectation) {
+    Medium m;
+    m.sigma_s = Rgb(1.8, 0.7, 0.3);
+    m.sigma_a = Rgb(0.061, 0.97, 1.45);
+    m.g = Rgb(0.9, 0.9, 0.8);
+    m.eta = 1.0;
+    WalkSettings plain = settings(), guided = settings();
+    plain.guide_g = -1;
+    guided.guided_vertices = 4;
+    const RandomWalk a(m, plain), b(m, guided);
+    SlabScene scene(kInf, dir_deg(70));
+    const Estimate ea = run(a, scene, Vec3(0, 0, 1), Vec3(0, 0, 1), 100000, 21);
+    const Estimate eb = run(b, scene, Vec3(0, 0, 1), Vec3(0, 0, 1), 100000, 22);
+    for (int c = 0; c < 3; c++) {
+        EXPECT_NEAR(ea.mean[c], eb.mean[c], 4 * std::hypot(ea.se[c], eb.se[c])) << c;
+        EXPECT_LT(eb.se[c], 0.1 * eb.mean[c]) << c;
+    }
+    EXPECT_LT(eb.se.g, 0.5 * ea.se.g);  // the short (absorbing) channels gain most
+    EXPECT_LT(eb.se.b, 0.5 * ea.se.b);
+}
+
 // No absorption, index-matched, isotropic: what enters a slab leaves it. With the light
 // straight on, the reflected and transmitted radiance integrated over the hemispheres (by
 // reciprocity: the walk from each exit direction) adds up to the light that entered.

@@ -83,6 +83,7 @@ RandomWalk::RandomWalk(const Medium& medium, const WalkSettings& settings) : set
                                         std::to_string(medium.g[c]));
     if (settings.samples < 1) throw std::invalid_argument("random walk: samples must be at least 1");
     eta_ = medium.eta;
+    guide_ = settings.guide_g >= 0 && std::max({medium.g.r, medium.g.g, medium.g.b}) > settings.guide_g;
     sigma_s_ = medium.sigma_s_per_unit();
     sigma_t_ = sigma_s_ + medium.sigma_a_per_unit();
     g_ = medium.g;
@@ -146,8 +147,9 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
 }
 
 Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
-                           std::uint64_t& state) const {
+                           std::uint64_t& state, Vec3* guide, bool* has_guide) const {
     Rgb sum(0.0);
+    double strongest = 0;
     const int lights = scene.light_count();
     const int reflections = eta_ == 1.0 ? 0 : std::min(settings_.beam_reflections, 4);
     for (int i = 0; i < lights; i++) {
@@ -172,6 +174,15 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const
             Rgb f;
             for (int ch = 0; ch < 3; ch++) f[ch] = beta[ch] * beam * tr[ch] * henyey_greenstein(cos_phase, g_[ch]);
             if (!(f.max_component() > 0)) continue;
+            if (k == 0) {
+                // the guide for the next direction: the unshadowed strength per unit phase
+                const double strength = beam * tr.max_component() * beta.max_component();
+                if (strength > strongest) {
+                    strongest = strength;
+                    *guide = b.w;
+                    *has_guide = true;
+                }
+            }
             // the shadow test (the costly part: a ray through the scene) by roulette where the
             // beam arrives weaker than `floor` of its strength in every channel (unbiased)
             const double most = tr.max_component() * b.mirror;
@@ -230,20 +241,30 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
         const double pdf = q.r * dens.r + q.g * dens.g + q.b * dens.b;
         if (!(pdf > 0)) break;
         beta = beta * sigma_s_ * tr * (1.0 / pdf);
-        sum += next_event(scene, p, d, beta, settings_.light_floor, state);
+        Vec3 guide;
+        bool has_guide = false;
+        sum += next_event(scene, p, d, beta, settings_.light_floor, state, &guide, &has_guide);
         // the next direction, from the phase function of a channel drawn by weight
         const double total2 = beta.r + beta.g + beta.b;
         if (!(total2 > 0)) break;
         const double u_ch = uniform(), u1 = uniform(), u2 = uniform();
         const int j = same_g ? 0 : pick_channel(beta, total2, u_ch);
-        const Vec3 next = sample_henyey_greenstein(d, g_[j], u1, u2);
-        if (!same_g) {
-            const double cs = dot(d, next);
+        // forward scattering: half the directions from the phase lobe about the strongest
+        // light's beam (toward where it enters), weighted by the mixture (one-sample MIS):
+        // the next point's light is then sampled where the phase function peaks
+        const bool guided = has_guide && guide_ && vertices <= std::uint64_t(settings_.guided_vertices);
+        const double share = settings_.guided_share;
+        const Vec3 axis = guided && uniform() < share ? guide : d;
+        const Vec3 next = sample_henyey_greenstein(axis, g_[j], u1, u2);
+        if (!same_g || guided) {
+            const double cs = dot(d, next), cg = guided ? dot(guide, next) : 0.0;
             const Rgb ph(henyey_greenstein(cs, g_.r), henyey_greenstein(cs, g_.g), henyey_greenstein(cs, g_.b));
-            const Rgb q2 = beta * (1.0 / total2);
-            const double pdf2 = q2.r * ph.r + q2.g * ph.g + q2.b * ph.b;
-            if (!(pdf2 > 0)) break;
-            beta = beta * ph * (1.0 / pdf2);
+            Rgb pdf = ph;
+            if (guided)
+                for (int ch = 0; ch < 3; ch++) pdf[ch] = (1.0 - share) * ph[ch] + share * henyey_greenstein(cg, g_[ch]);
+            const double mixture = same_g ? pdf.r : (beta.r * pdf.r + beta.g * pdf.g + beta.b * pdf.b) / total2;
+            if (!(mixture > 0)) break;
+            beta = beta * ph * (1.0 / mixture);
         }
         d = next;
         // Russian roulette on the largest channel weight

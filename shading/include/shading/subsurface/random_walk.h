@@ -25,6 +25,10 @@
 //    of a forward-scattering medium, the beam its back face mirrors lights the front.
 //    Shadows, spotlights and light colours are the renderer's, asked at x_i; where the
 //    light could add little (a deep vertex), the shadow test is made by roulette.
+// * forward scattering (g > 0.3): at the first scattering point, half the directions are drawn
+//   about the strongest light's beam, weighted by the mixture of both lobes (one-sample MIS),
+//   so the next point's light, where the phase function lines up with the beam, is found often
+//   instead of rarely.
 // Russian roulette on the largest channel weight bounds the walk without bias.
 //
 // Lengths in scene units (the medium's coefficients are per mm, times mm_per_unit).
@@ -72,6 +76,18 @@ struct WalkSettings {
     // Internal reflections of the unscattered beam followed by next-event estimation (eta != 1):
     // a forward-scattering sheet sees the beam its back face mirrors (up to 4).
     int beam_reflections = 2;
+    // Where some channel's g is above this, half the scattering directions are drawn from the
+    // phase lobe about the strongest light's beam (one-sample MIS with the phase function's own
+    // lobe): with a forward-peaked phase function, next-event estimation's variance comes from
+    // the rare directions that line up with the beam. Negative: never.
+    double guide_g = 0.3;
+    // ... at the first this many scattering points only: each guided step multiplies the walk's
+    // weight by up to 1 / (1 - guided_share) (mean 1), and a long walk's product of such factors
+    // is heavy-tailed. Measured (half-space, g 0.9, light at 70 degrees, variance x time per
+    // walk): at 1, Ketchup's green and blue 5x and 15x better, red and Skin1-like media as
+    // before or better; at 4, Ketchup's green and blue 100x better and high albedos worse.
+    int guided_vertices = 1;
+    double guided_share = 0.5;  // the part of those directions drawn about the beam
 };
 
 // Counters of every walk of the process (relaxed atomics: statistics only).
@@ -114,11 +130,13 @@ private:
                    double floor, std::uint64_t& state) const;
     // Light from every light scattered at v toward -d, times the walk's weight beta; a beam
     // attenuated below `floor` in every channel is shadow-tested by roulette.
+    // *guide: from v toward where the strongest light's beam enters (when *has_guide).
     Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
-                   std::uint64_t& state) const;
+                   std::uint64_t& state, Vec3* guide, bool* has_guide) const;
 
     WalkSettings settings_;
     double eta_;
+    bool guide_ = false;  // directions guided toward the light's beam (forward scattering)
     Rgb sigma_s_, sigma_t_, g_;  // per scene unit
 };
 
