@@ -205,3 +205,30 @@ sphere {{ 0, 3.6 texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "S
     u = runner.render(sphere.format(m="auto"), fork, width=24, height=24, float_exr=True, threads=2)
     assert np.array_equal(w.image, u.image)
     assert "Dipole method auto: 1 walked, 0 by profile" in u.stderr
+
+
+CSG = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <0, 0, 50> direction <0, 0, -1> right <16, 0, 0> up <0, 10, 0> }}
+light_source {{ <1, 0.5, 1> * 1000 rgb 1 parallel point_at <0, 0, 0> }}
+{kind} {{ sphere {{ <-2, 0, 0>, 3 }} sphere {{ <2, 0, 0>, 3 }} {extra}
+  texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "Skin1" mm_per_unit 1 method random_walk samples 4 }} }} }} }}
+"""
+
+
+def test_a_csg_is_one_medium(fork):
+    """A union kept whole (`split_union off`) of two overlapping spheres has inner surfaces
+    that a merge has not; the walk moves in the whole CSG (not the primitive the camera hit)
+    and passes through them (POV's Inside_Object behind each crossing), so both render the
+    same medium: the same pixels (the walks of a point are seeded by the point, and the outer
+    surfaces are the same). A plain union is split by POV's parser into separate objects,
+    two media (as for glass, `merge` is the one-medium form): its walks are shorter."""
+    kw = dict(width=32, height=20, float_exr=True, threads=2)
+    u = runner.render(CSG.format(kind="union", extra="split_union off"), fork, **kw)
+    m = runner.render(CSG.format(kind="merge", extra=""), fork, **kw)
+    pixels(u)
+    assert np.abs(u.image - m.image).max() <= 1e-6 * m.image.max()
+    split = runner.render(CSG.format(kind="union", extra=""), fork, **kw)
+    assert np.abs(split.image - m.image).max() > 0.01 * m.image.max()
+    d = runner.render(CSG.format(kind="difference", extra=""), fork, **kw)
+    assert pixels(d).max() > 0
