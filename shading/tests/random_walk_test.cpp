@@ -79,6 +79,16 @@ Vec3 dir_deg(double theta, double phi = 0) {
     return Vec3(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t));
 }
 
+// A grey medium that scatters little (single scattering dominates).
+Medium faint_medium(double sigma_s, double sigma_a, double g, double eta) {
+    Medium m;
+    m.sigma_s = Rgb(sigma_s);
+    m.sigma_a = Rgb(sigma_a);
+    m.g = Rgb(g);
+    m.eta = eta;
+    return m;
+}
+
 WalkSettings settings() {
     WalkSettings s;
     s.samples = 1;
@@ -112,12 +122,7 @@ TEST(RandomWalk, HalfSpaceIsChandrasekharsInEveryChannel) {
 TEST(RandomWalk, SingleScatteringOfAHalfSpaceAtAnyGAndEta) {
     for (double eta : {1.0, 1.3}) {
         for (double g : {0.0, 0.9, -0.5}) {
-            Medium m;
-            m.sigma_s = Rgb(1e-4);
-            m.sigma_a = Rgb(1.0);
-            m.g = Rgb(g);
-            m.eta = eta;
-            const RandomWalk rw(m, settings());
+            const RandomWalk rw(faint_medium(1e-4, 1.0, g, eta), settings());
             const Vec3 l = dir_deg(45), v = dir_deg(35, 150);
             SlabScene scene(kInf, l);
             const Estimate e = run(rw, scene, Vec3(0, 0, 1), v, 20000, 11);
@@ -141,12 +146,7 @@ TEST(RandomWalk, SingleScatteringOfAHalfSpaceAtAnyGAndEta) {
 // cosines), so L inside = w p E int_0^d exp(-(d - z)/a - z/b) dz / b, E = mu0 Ft(mu0) / a.
 TEST(RandomWalk, SingleScatteringThroughASlab) {
     const double eta = 1.3, g = 0.9, d = 0.7;
-    Medium m;
-    m.sigma_s = Rgb(1e-4);
-    m.sigma_a = Rgb(1.0);
-    m.g = Rgb(g);
-    m.eta = eta;
-    const RandomWalk rw(m, settings());
+    const RandomWalk rw(faint_medium(1e-4, 1.0, g, eta), settings());
     const Vec3 l = Vec3(0.3, 0.1, -1.0);  // the light is below the slab
     const Vec3 v = dir_deg(20, 10);
     SlabScene scene(d, normalize(l));
@@ -173,12 +173,7 @@ TEST(RandomWalk, SingleScatteringThroughASlab) {
 // the mirrored beam matter: the back face sends it toward the eye at a small angle.
 TEST(RandomWalk, SingleScatteringOfASlabWithItsInternalReflections) {
     const double eta = 1.3, g = 0.9, d = 1.0, ws = 1e-4;
-    Medium m;
-    m.sigma_s = Rgb(ws);
-    m.sigma_a = Rgb(1.0 - ws);  // sigma_t = 1
-    m.g = Rgb(g);
-    m.eta = eta;
-    const RandomWalk rw(m, settings());
+    const RandomWalk rw(faint_medium(ws, 1.0 - ws, g, eta), settings());  // sigma_t = 1
     const Vec3 l = dir_deg(45, 180), v = dir_deg(30);  // the beam travels toward +x, the eye sees it from +x
     SlabScene scene(d, l);
     const Estimate e = run(rw, scene, Vec3(0, 0, 1), v, 100000, 9);
