@@ -84,6 +84,7 @@ RandomWalk::RandomWalk(const Medium& medium, const WalkSettings& settings) : set
     if (settings.samples < 1) throw std::invalid_argument("random walk: samples must be at least 1");
     eta_ = medium.eta;
     guide_ = settings.guide_g >= 0 && std::max({medium.g.r, medium.g.g, medium.g.b}) > settings.guide_g;
+    probe_ = guide_ && settings.probe && medium.g.r == medium.g.g && medium.g.g == medium.g.b;
     sigma_s_ = medium.sigma_s_per_unit();
     sigma_t_ = sigma_s_ + medium.sigma_a_per_unit();
     g_ = medium.g;
@@ -211,6 +212,8 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
     Vec3 p = x;
     auto uniform = [&]() { return uniform_double(splitmix64(state)); };
     std::uint64_t vertices = 0;
+    // the probe's balance-heuristic share of the next point's light (1: no probe covers it)
+    double pending = 1.0;
     int k = 0;
     for (; k < settings_.max_vertices; k++) {
         WalkScene::Hit h{};
@@ -231,6 +234,7 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
             if (!(uniform() < f)) break;  // leaves: the outside is lit only by the lights
             d = normalize(d - h.n * (2.0 * cos_i));
             p = h.p;
+            pending = 1.0;  // a mirrored path: no probe reaches it
             continue;
         }
         if (!std::isfinite(t)) break;
@@ -243,7 +247,32 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
         beta = beta * sigma_s_ * tr * (1.0 / pdf);
         Vec3 guide;
         bool has_guide = false;
-        sum += next_event(scene, p, d, beta, settings_.light_floor, state, &guide, &has_guide);
+        sum += next_event(scene, p, d, beta, settings_.light_floor, state, &guide, &has_guide) * pending;
+        pending = 1.0;
+        const bool probing = probe_ && has_guide;
+        if (probing) {
+            // The probe: the light at the NEXT scattering point, along a direction drawn from
+            // the phase lobe about the beam instead of the walk's own (a second strategy for
+            // the same paths, balance heuristic: each weighted p_d / (p_d + p_beam)), so the
+            // directions where the phase function meets the beam are not left to chance.
+            const Vec3 xd = sample_henyey_greenstein(guide, g_.r, uniform(), uniform());
+            const double pd = henyey_greenstein(dot(d, xd), g_.r), pg = henyey_greenstein(dot(guide, xd), g_.r);
+            WalkScene::Hit hp{};
+            const double tp = scene.leave(p, xd, &hp) ? hp.t : kInf;
+            const double totalp = beta.r + beta.g + beta.b;
+            const int cp = pick_channel(beta, totalp, uniform());
+            const double t2 = sigma_t_[cp] > 0 ? -std::log(1.0 - uniform()) / sigma_t_[cp] : kInf;
+            if (t2 < tp && pd + pg > 0) {
+                const Rgb tr2 = exp_neg(sigma_t_, t2), dens2 = sigma_t_ * tr2;
+                const double pdf2 = (beta.r * dens2.r + beta.g * dens2.g + beta.b * dens2.b) / totalp;
+                if (pdf2 > 0) {
+                    const Rgb bp = beta * sigma_s_ * tr2 * (pd / ((pd + pg) * pdf2));
+                    Vec3 unused;
+                    bool unused_flag = false;
+                    sum += next_event(scene, p + xd * t2, xd, bp, settings_.light_floor, state, &unused, &unused_flag);
+                }
+            }
+        }
         // the next direction, from the phase function of a channel drawn by weight
         const double total2 = beta.r + beta.g + beta.b;
         if (!(total2 > 0)) break;
@@ -252,7 +281,7 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
         // forward scattering: half the directions from the phase lobe about the strongest
         // light's beam (toward where it enters), weighted by the mixture (one-sample MIS):
         // the next point's light is then sampled where the phase function peaks
-        const bool guided = has_guide && guide_ && vertices <= std::uint64_t(settings_.guided_vertices);
+        const bool guided = !probe_ && has_guide && guide_ && vertices <= std::uint64_t(settings_.guided_vertices);
         const double share = settings_.guided_share;
         const Vec3 axis = guided && uniform() < share ? guide : d;
         const Vec3 next = sample_henyey_greenstein(axis, g_[j], u1, u2);
@@ -265,6 +294,10 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
             const double mixture = same_g ? pdf.r : (beta.r * pdf.r + beta.g * pdf.g + beta.b * pdf.b) / total2;
             if (!(mixture > 0)) break;
             beta = beta * ph * (1.0 / mixture);
+        }
+        if (probing) {
+            const double pd = henyey_greenstein(dot(d, next), g_.r), pg = henyey_greenstein(dot(guide, next), g_.r);
+            pending = pd + pg > 0 ? pd / (pd + pg) : 1.0;
         }
         d = next;
         // Russian roulette on the largest channel weight

@@ -25,10 +25,11 @@
 //    of a forward-scattering medium, the beam its back face mirrors lights the front.
 //    Shadows, spotlights and light colours are the renderer's, asked at x_i; where the
 //    light could add little (a deep vertex), the shadow test is made by roulette.
-// * forward scattering (g > 0.3): at the first scattering point, half the directions are drawn
-//   about the strongest light's beam, weighted by the mixture of both lobes (one-sample MIS),
-//   so the next point's light, where the phase function lines up with the beam, is found often
-//   instead of rarely.
+// * forward scattering (g > 0.3): at every scattering point a probe direction drawn about the
+//   strongest light's beam gives a second estimate of the next point's light, combined with
+//   the walk's own by the balance heuristic (channels with different g: the first direction
+//   is steered instead, weighted by the mixture of both lobes), so where the phase function
+//   lines up with the beam is found often instead of rarely.
 // Russian roulette on the largest channel weight bounds the walk without bias.
 //
 // Lengths in scene units (the medium's coefficients are per mm, times mm_per_unit).
@@ -88,6 +89,10 @@ struct WalkSettings {
     // before or better; at 4, Ketchup's green and blue 100x better and high albedos worse.
     int guided_vertices = 1;
     double guided_share = 0.5;  // the part of those directions drawn about the beam
+    // Instead (one g for all channels): at every scattering point a probe direction drawn about
+    // the beam carries a second estimate of the next point's light, combined with the walk's
+    // own by the balance heuristic; the walk itself is not steered, so no weight grows.
+    bool probe = true;
 };
 
 // Counters of every walk of the process (relaxed atomics: statistics only).
@@ -137,6 +142,7 @@ private:
     WalkSettings settings_;
     double eta_;
     bool guide_ = false;  // directions guided toward the light's beam (forward scattering)
+    bool probe_ = false;  // the next point's light by a second, beam-guided strategy (MIS)
     Rgb sigma_s_, sigma_t_, g_;  // per scene unit
 };
 
