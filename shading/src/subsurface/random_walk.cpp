@@ -41,15 +41,6 @@ WalkStats random_walk_stats() {
 
 void random_walk_count_auto(bool walked) { (walked ? g_auto_walked : g_auto_profiled).fetch_add(1, std::memory_order_relaxed); }
 
-void random_walk_stats_reset() {
-    g_walks = 0;
-    g_vertices = 0;
-    g_light_paths = 0;
-    g_truncated = 0;
-    g_auto_walked = 0;
-    g_auto_profiled = 0;
-}
-
 Vec3 sample_henyey_greenstein(const Vec3& axis, double g, double u1, double u2) {
     double c;
     if (std::fabs(g) < 1e-3) {

@@ -49,13 +49,18 @@ Subsurface::~Subsurface() = default;
 double Subsurface::mean_free_path() const { return model_->mean_free_path(); }
 
 bool Subsurface::auto_walks(const void* key, double extent) const {
-    std::lock_guard<std::mutex> lock(auto_mutex_);
-    auto it = auto_choice_.find(key);
-    if (it != auto_choice_.end()) return it->second;
     // unbounded objects (a plane: a half-space) have no cloud; the walk handles them
     const bool walk = !(extent < kInf) || extent < settings_.auto_lengths * diffusion_length();
-    auto_choice_.emplace(key, walk);
-    random_walk_count_auto(walk);
+    // the statistics count each object once; a thread's run of lookups on one object takes
+    // no lock (the decision itself needs none: it is the object's size against the medium's)
+    thread_local const Subsurface* last_owner = nullptr;
+    thread_local const void* last_key = nullptr;
+    if (last_owner != this || last_key != key) {
+        last_owner = this;
+        last_key = key;
+        std::lock_guard<std::mutex> lock(auto_mutex_);
+        if (auto_counted_.insert(key).second) random_walk_count_auto(walk);
+    }
     return walk;
 }
 

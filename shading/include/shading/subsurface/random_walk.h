@@ -106,7 +106,6 @@ struct WalkStats {
 // `method auto`'s decisions, one per object.
 void random_walk_count_auto(bool walked);
 WalkStats random_walk_stats();
-void random_walk_stats_reset();
 
 // The walk's coefficients in scene units, checked once.
 class RandomWalk {

@@ -40,7 +40,7 @@
 
 #include <memory>
 #include <mutex>
-#include <unordered_map>
+#include <unordered_set>
 #include <string>
 
 #include "shading/brdf/brdf.h"
@@ -110,7 +110,7 @@ public:
     // The walk of `method random_walk` and `method auto` (null for profiles).
     const RandomWalk* walk() const { return walk_.get(); }
     // `method auto`: whether the object `key` (smallest bounding-box extent `extent`, scene
-    // units; infinity: unbounded) is walked. Decided once per object, counted in the statistics.
+    // units; infinity: unbounded) is walked; each object is counted once in the statistics.
     bool auto_walks(const void* key, double extent) const;
 
     // Base sample spacing for an object whose bounding box has the given largest extent: the
@@ -167,7 +167,7 @@ private:
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
     mutable std::mutex auto_mutex_;
-    mutable std::unordered_map<const void*, bool> auto_choice_;
+    mutable std::unordered_set<const void*> auto_counted_;  // method auto: objects in the statistics
     CloudCache clouds_;
     std::shared_ptr<const PointCloud> build(const ParallelFor& parallel, SurfaceSampler& sampler) const;
 };
