@@ -25,8 +25,10 @@ Model (the assumptions of both, and nothing of their mathematics):
   * radiance (optional `views`): for each outside direction leaving the top face, the radiance of
     the surface under UNIFORM illumination (by translation invariance the pencil beam's response
     integrated over the surface) per unit entering flux density, by the next-event (point)
-    estimator: every interaction of weight w at depth z adds w p(u . w') exp(-z/mu') / mu' toward
-    the inside direction w' that refracts into the view, times Ft(mu') / eta^2 on the way out. Exact
+    estimator: every interaction of weight w at depth z adds w p(u . w') exp(-sigma_t z/mu') / mu'
+    toward the inside direction w' that refracts into the view (in a slab, plus the far face's
+    reflections of that direction: F p(u . w'_mirrored) exp(-sigma_t (2d - z)/mu'), all over
+    1 - F^2 exp(-2 sigma_t d/mu')), times Ft(mu') / eta^2 on the way out. Exact
     in expectation and of low variance, at exact directions (no angular bins). pi L / E_entering is
     then `radiance_*`; for eta = 1, isotropic scattering and normal incidence the total is
     Chandrasekhar's omega H(mu) H(1) / (4 (mu + 1)) (dipole_ref.plane_radiance_isotropic).
@@ -201,6 +203,9 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
         mu_in = dipole_ref.refracted_cos(views[:, 2], eta)  # outside -> inside: relative index eta
         win = np.stack([views[:, 0] / eta, views[:, 1] / eta, -mu_in], axis=1)
         exit_w = (1.0 - dipole_ref.fresnel_dielectric(views[:, 2], eta)) / eta**2
+        if slab:
+            f_back = _fresnel_out(mu_in, inv_eta)  # inside reflection at either face
+            round_trip = 1.0 - f_back**2 * np.exp(-2.0 * sigma_t * d / mu_in)
 
     n = int(n_photons)
     ids = np.arange(n)
@@ -295,10 +300,21 @@ def simulate(sigma_s: float, sigma_a: float, g: float = 0.0, eta: float = 1.0,
             interactions += int(m.sum())
             if nv:
                 # Next-event estimate of the radiance toward each view: scattered into the inside
-                # direction that refracts into it, unattenuated up to the top face.
+                # direction that refracts into it, attenuated by exp(-sigma_t z / mu') on the way
+                # up. In a slab the view's ray, followed back from the eye, also reflects off the
+                # far face (Fresnel F at mu', the same at both faces) and returns: the source
+                # scattering DOWN into the mirrored direction counts with F exp(-sigma_t (2d - z) /
+                # mu'), and every further round trip multiplies both by F^2 exp(-2 sigma_t d / mu').
                 zm = z[m][:, None]
-                cosp = ux[m][:, None] * win[None, :, 0] + uy[m][:, None] * win[None, :, 1] + uz[m][:, None] * win[None, :, 2]
-                c = w[m][:, None] * _hg(np.clip(cosp, -1.0, 1.0), g) * np.exp(-zm / mu_in[None, :]) / mu_in[None, :]
+                ax, ay, az = ux[m][:, None], uy[m][:, None], uz[m][:, None]
+                cosp = ax * win[None, :, 0] + ay * win[None, :, 1] + az * win[None, :, 2]
+                c = _hg(np.clip(cosp, -1.0, 1.0), g) * np.exp(-sigma_t * zm / mu_in[None, :])
+                if slab:
+                    cosd = ax * win[None, :, 0] + ay * win[None, :, 1] - az * win[None, :, 2]
+                    c = c + f_back[None, :] * _hg(np.clip(cosd, -1.0, 1.0), g) * \
+                        np.exp(-sigma_t * (2.0 * d - zm) / mu_in[None, :])
+                    c = c / round_trip[None, :]
+                c = w[m][:, None] * c / mu_in[None, :]
                 c = c * exit_w[None, :] * math.pi
                 first = order[m] == 1
                 mid = ids[m]
