@@ -9,8 +9,9 @@ transport computed without the library:
   tracer that shares no code with the library) for the same geometry;
 * a blob (the study's shape) with marble: no patches or steps. The residual of the image against
   its own smoothed version is white noise for the walk (independent walks per pixel) and
-  spatially correlated where a method leaves patches; the profile method's render of the same
-  blob fails the same check.
+  spatially correlated where a method leaves patches or any other structure; the profile
+  method's noise-free render of the same blob fails the same check (the control). The profile's
+  own freedom from patches is tests/test_dipole_shapes.py's.
 
 Tolerances are stated before measuring: 4 combined standard errors plus 0.5 % (the walk and the
 references are exact; only noise separates them).
@@ -30,7 +31,8 @@ from harness.reference import dipole_ref, volume_ref
 WALK_SLACK = 0.005
 #: the shadow edge's worst point as a fraction of the plateau (issue 31), beyond 4 standard errors
 EDGE_PLATEAU_FRACTION = 0.03
-#: residual neighbour correlation: the walk's image at most, the profile's blob (patches) at least
+#: residual neighbour correlation: the walk's image at most; the profile's noise-free image (its
+#: residual is smooth shading) at least, so the check is not blind to spatial structure
 BLOB_WALK_CORR = 0.15
 BLOB_PROFILE_CORR = 0.3
 
@@ -178,7 +180,8 @@ def test_blob_has_no_patches(fork):
     cw, cp = patchiness(walk.image), patchiness(profile.image)
     print(f"blob residual neighbour correlation: random walk {cw:+.3f}, profile {cp:+.3f}")
     # the smoothing itself correlates neighbours' residuals by about -1/25; stated before
-    # measuring: the walk below 0.15, and the check must see the profile's patches (above 0.3)
+    # measuring: the walk below 0.15, and the check must see the noise-free profile's structure
+    # (above 0.3)
     assert cw < BLOB_WALK_CORR
     assert cp > BLOB_PROFILE_CORR
 
