@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from harness.core import runner
+from tests.test_random_walk import BLOB  # the study's blob, `{method}` in its dipole block
 
 #: profile, two-part blob against the same two spheres: largest pixel difference / brightest pixel
 BLOB_PROFILE_MAX = 0.05
@@ -87,14 +88,6 @@ def test_walk_leaves_a_blob_where_it_leaves_the_same_sphere(fork):
     assert abs(verts[1] / verts[0] - 1) < BLOB_WALK_VERTICES
 
 
-STUDY_BLOB = """#version 3.7;
-global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
-camera {{ location <0, 2.3, -5.2> look_at <0, 1, 0> angle 32 }}
-light_source {{ <-4, 6, -5> rgb 1 }}
-blob {{ threshold 0.55 sphere {{ <-0.45, 0.9, 0>, 0.85, 1 }} sphere {{ <0.5, 1.15, 0.1>, 0.75, 1 }}
-  sphere {{ <0.05, 0.6, -0.35>, 0.7, 1 }} cylinder {{ <-0.6, 1.5, 0>, <0.6, 1.6, 0>, 0.35, 1 }}
-  texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "{preset}" {extra} }} }} }} }}
-"""
 
 
 def _inside(y: np.ndarray) -> np.ndarray:
@@ -150,7 +143,7 @@ def bumpy_mesh(nu: int = 48, nv: int = 24) -> str:
 
 
 SHAPES = {
-    "blob": STUDY_BLOB,
+    "blob": BLOB.replace('"Marble" {method}', '"{preset}" {extra}'),
     # a sphere with a box and a cylinder cut out: concave edges and inner faces
     "difference": """#version 3.7;
 global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
