@@ -3,21 +3,33 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "shading/brdf/fresnel.h"
 
 namespace shading {
 namespace ss_detail {
 
-// Lagrange polynomial through (angle_node(j), v[j]) evaluated at mu.
+// Lagrange polynomial through (angle_node(j), v[j]) evaluated at mu. The n nodes are computed
+// once per call (n cosines, not n^2: the same numbers, so the same bits; thin geometry builds
+// a slab node's exit distribution from thousands of these calls).
 double angle_poly(const std::vector<double>& v, double mu) {
     const int n = int(v.size());
+    constexpr int kMaxNodes = 64;
+    double node_buf[kMaxNodes];
+    std::vector<double> node_heap;
+    double* x = node_buf;
+    if (n > kMaxNodes) {
+        node_heap.resize(std::size_t(n));
+        x = node_heap.data();
+    }
+    for (int j = 0; j < n; ++j) x[j] = angle_node(j, n);
     double sum = 0;
     for (int j = 0; j < n; ++j) {
-        const double xj = angle_node(j, n);
+        const double xj = x[j];
         double l = 1.0;
         for (int i = 0; i < n; ++i)
-            if (i != j) l *= (mu - angle_node(i, n)) / (xj - angle_node(i, n));
+            if (i != j) l *= (mu - x[i]) / (xj - x[i]);
         sum += l * v[j];
     }
     return sum;
