@@ -13,12 +13,37 @@ namespace shading {
 
 namespace {
 
+// At most this many image pairs either side of the slab are summed term by term (image_sum).
+constexpr int kExactPairs = 6;
+
 // One point source at signed height z above the evaluation plane (the plane's normal pointing
 // towards the source is +): z (1 + s d) e^{-s d} / d^3, d = sqrt(r^2 + z^2) (the dipole's term).
 inline double source_term(double r, double z, double s) {
-    const double d = std::hypot(r, z);
+    const double d = std::sqrt(r * r + z * z);
     if (!(d > 0)) return 0.0;  // a source on the plane at r = 0: measure zero
     return (z / d) * (1.0 + s * d) * std::exp(-s * d) / (d * d);
+}
+
+// The source term is -dG/dz with G = e^{-s d} / d (d = sqrt(r^2 + z^2)), so a row of equal
+// images at z = b + i D, i > n, sums by Euler-Maclaurin (midpoint form) to
+//     G(m) / D + (D / 24) f'(m) - (7 D^3 / 5760) f'''(m) + ...,   m = b + (n + 1/2) D,
+// for either sign of D (f = source_term): its integral from the midpoint outwards and the
+// first correction.
+inline double potential(double r, double z, double s) {
+    const double d = std::sqrt(r * r + z * z);
+    return std::exp(-s * d) / d;
+}
+// d/dz of source_term: (1 + s d) e / d^3 - z^2 (s^2 d^2 + 3 s d + 3) e / d^5, e = e^{-s d}.
+inline double source_slope(double r, double z, double s) {
+    const double d2 = r * r + z * z, d = std::sqrt(d2), e = std::exp(-s * d), sd = s * d;
+    return e / (d2 * d) * ((1.0 + sd) - z * z * (sd * sd + 3.0 * sd + 3.0) / d2);
+}
+
+// Both tails (i > n and i < -n) of the row of images at z = b + 2 i L.
+inline double image_tails(double r, double b, double L, int n, double s) {
+    const double m = (2.0 * n + 1.0) * L;
+    return (potential(r, b + m, s) - potential(r, b - m, s)) / (2.0 * L) +
+           (2.0 * L / 24.0) * (source_slope(r, b + m, s) - source_slope(r, b - m, s));
 }
 
 // sinh(s x) / sinh(s L) and friends stay finite for large s L: evaluated as exponentials.
@@ -52,11 +77,12 @@ SlabChannel SlabChannel::make(const DipoleChannel& ch, double d) {
     // eigenmode across the slab): 30 / kappa leaves e^-30 of it.
     const double kappa = std::sqrt(c.sigma_tr * c.sigma_tr + (kPi / L) * (kPi / L));
     c.cutoff = 30.0 / kappa;
-    // Images out to |z| = 3 cutoffs at least; where little is absorbed the pairs' differences
-    // fall only as a power of |z| (the truncated sum was 1 % low in total without absorption
-    // at 3 cutoffs): out to 15 cutoffs or 30 / sigma_tr, whichever is nearer.
-    const double reach = std::max(3.0 * c.cutoff, std::min(15.0 * c.cutoff, c.sigma_tr > 0 ? 30.0 / c.sigma_tr : kInf));
-    c.pairs = std::min(2000, int(std::ceil(reach / (2.0 * L))) + 1);
+    // Pairs summed term by term out to |z| = 3 cutoffs, at most kExactPairs of them; the rest
+    // of each row of images by Euler-Maclaurin (image_tails: where little is absorbed the
+    // pairs' differences fall only as a power of |z|, and a sum truncated at 3 cutoffs was 1 %
+    // low in total). Against a 200,000-pair direct sum, the profile at 0 within 9e-8 at 6
+    // pairs (1.7e-9 at 12, 9e-7 at 4; the tails' integral alone: 4.6e-7 at 12).
+    c.pairs = std::min(kExactPairs, int(std::ceil(3.0 * c.cutoff / (2.0 * L))) + 1);
     return c;
 }
 
@@ -68,11 +94,12 @@ double SlabChannel::image_sum(double r, bool opposite) const {
     if (!(r < cutoff)) return 0.0;
     const double L = d + 2 * zb, s = sigma_tr;
     double sum = 0;
-    for (int i = -pairs; i <= pairs; ++i) {
-        const double zr = 2.0 * i * L + z0, zv = 2.0 * i * L - z0 - 2.0 * zb;
-        sum += opposite ? source_term(r, d - zr, s) - source_term(r, d - zv, s)
-                        : source_term(r, zr, s) - source_term(r, zv, s);
-    }
+    // Real images at z = br + 2 i L, virtual ones at z = bv + 2 i L (either face: the rows of
+    // the opposite face, d - z, run the other way, which the symmetric sum does not mind).
+    const double br = opposite ? d - z0 : z0, bv = opposite ? d + z0 + 2.0 * zb : -z0 - 2.0 * zb;
+    for (int i = -pairs; i <= pairs; ++i)
+        sum += source_term(r, br + 2.0 * i * L, s) - source_term(r, bv + 2.0 * i * L, s);
+    sum += image_tails(r, br, L, pairs, s) - image_tails(r, bv, L, pairs, s);
     return std::max(0.0, power / (4.0 * kPi) * sum);
 }
 

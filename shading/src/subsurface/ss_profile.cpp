@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 #include "shading/brdf/fresnel.h"
 #include "shading/subsurface/ss_profile_curve.h"
@@ -17,10 +18,6 @@ namespace {
 
 // Critical inside cosine of a face: light inside with mu below it is totally reflected.
 double critical_cos(double eta) { return eta > 1.0 ? std::sqrt(1.0 - 1.0 / (eta * eta)) : 0.0; }
-
-// 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of stored samples pi I / M: the exit
-// distribution's integral (1 up to the interpolant's error).
-double exit_integral(const std::vector<double>& samples, double eta) { return exit_sum(samples, eta) / (eta * eta); }
 
 // Cubic Lagrange weights on up to 4 nodes around x (fewer near the ends or on small grids);
 // exact at the nodes, x clamped to the axis.
@@ -123,13 +120,21 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     ci_ = s.cos_inside;
     double ln_total = 0, single = 0, ballistic = 0, tail_k = 0, wsum_total = 0, own_flux = 0;
     const double mu_c = critical_cos(eta);
+    // Every record is read at the same cosines: the Lagrange bases once (bit for bit the
+    // polynomial's values), the exit sums' per eta node.
+    std::vector<double> angle_mu(129);
+    for (int j = 0; j <= 128; ++j) angle_mu[std::size_t(j)] = mu_c + (1 - mu_c) * j / 128.0;
+    const AngleBasis angle_basis(s.angle_nodes, angle_mu);
+    std::vector<ExitSum> exit_sums;
+    for (auto [ie, w2] : we) exit_sums.emplace_back(s.angle_nodes, s.eta[ie]);
     for (auto [ig, w1] : wg) {
         const double gn = s.g[ig];
         // The node's albedo at the same reduced albedo: alpha' = alpha (1 - g) / (1 - alpha g).
         const double alpha = alpha_prime / (1.0 - gn + alpha_prime * gn);
         const auto wd = thickness_weights(alpha, gn);
-        for (auto [ie, w2] : we)
+        for (std::size_t ke = 0; ke < we.size(); ++ke)
             for (auto [id, w3] : wd) {
+                const auto [ie, w2] = we[ke];
                 const double w = w1 * w2 * w3;
                 const double u = alpha < 1.0 ? -std::log1p(-alpha) : 1e300;
                 // Multiple scattering goes as alpha^2 for small alpha: the profile values and the
@@ -139,6 +144,8 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                 const double ln_a2 = alpha > 0 ? 2.0 * std::log(alpha) : std::log(kTiny);
                 for (auto [k, wk] : albedo_weights(s.albedos, sidx)) {
                     const FaceRecord& r = t.record(ig, ie, id, face, k);
+                    if (r.angle.size() != std::size_t(s.angle_nodes))
+                        throw std::logic_error("exact profile: a record's angle samples differ from the tables' count");
                     const double ww = w * wk;
                     const double ln_scale = ln_a2 - 2.0 * std::log(t.albedo(k));
                     ln_total += ww * (std::log(std::max(r.multi, kTiny)) + ln_scale);
@@ -148,8 +155,10 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     tail_k += ww * r.tail_k;
                     for (int b = 0; b < nb; ++b) lnv_[b] += ww * (std::log(std::max(r.profile[b], kTiny)) + ln_scale);
                     for (int j = 0; j < nci; ++j) incidence_[j] += ww * r.incidence[j];
-                    for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_poly(r.angle, mu_c + (1 - mu_c) * j / 128.0);
-                    own_flux += ww * exit_integral(r.angle, s.eta[ie]);
+                    for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_basis.value(r.angle, std::size_t(j));
+                    // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of the stored samples
+                    // pi I / M: the exit distribution's integral (1 up to the interpolant's error).
+                    own_flux += ww * exit_sums[ke](r.angle) / (s.eta[ie] * s.eta[ie]);
                 }
             }
     }

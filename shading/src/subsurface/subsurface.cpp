@@ -192,21 +192,32 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     if (!(thickness < slab_threshold_)) return radiance(cloud, x, n, to_eye, irradiance_here);
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
-    const SlabCache::Node& slab = slabs_->node(thickness);
+    // Linear in ln d between the two thickness nodes around it (SlabCache::around).
+    const SlabCache::Around slab = slabs_->around(thickness);
     const int level = cloud.lookup_level(x);
-    const double h = cloud.level_spacing(level), r0 = near_radius(h);
     std::size_t visited = 0;
-    Rgb near_same, near_opposite;
-    slab.near(h, &near_same, &near_opposite);
-    Rgb opposite;
-    Rgb m = cloud.far_exitance_sided(*slab.p.same, *slab.p.transmit, x, n, slab.p.d, r0, h, settings_.max_angle,
-                                     near_opposite, &visited, &opposite);
+    Rgb m = slab_radiance(*slab.a, cloud, x, n, cos_o, irradiance_here, level, &visited);
+    if (slab.b) m = m * (1.0 - slab.t) + slab_radiance(*slab.b, cloud, x, n, cos_o, irradiance_here, level, &visited) * slab.t;
     count_lookup(visited, true);
+    return m;
+}
+
+Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n,
+                              double cos_o, const Rgb& irradiance_here, int level, std::size_t* visited) const {
+    const SlabProfiles& p = node.p;
+    const double h = cloud.level_spacing(level), r0 = near_radius(h);
+    Rgb near_same, near_opposite;
+    node.near(h, &near_same, &near_opposite);
+    Rgb opposite;
+    std::size_t seen = 0;
+    Rgb m = cloud.far_exitance_sided(*p.same, *p.transmit, x, n, p.d, r0, h, settings_.max_angle, near_opposite, &seen,
+                                     &opposite);
+    *visited += seen;
     m += irradiance_here * near_same;
-    if (!slab.p.exit) return m * model_->exit_factor(cos_o);
+    if (!p.exit) return m * model_->exit_factor(cos_o);
     // The exact slab tables: each face's own exit distribution (DIPOLE.md 6a).
     Rgb same_exit, opposite_exit;
-    slab.p.exit(cos_o, &same_exit, &opposite_exit);
+    p.exit(cos_o, &same_exit, &opposite_exit);
     return (m - opposite) * same_exit + opposite * opposite_exit;
 }
 

@@ -41,7 +41,7 @@ struct SlabChannel {
     double zb = 0;       // extrapolation distance 2 A D
     double sigma_tr = 0;
     double cutoff = 0;   // radius beyond which R and T are taken as 0 (slab_cutoff)
-    int pairs = 0;       // n
+    int pairs = 0;       // image pairs summed term by term either side (the rest of each row: its integral)
     bool empty = true;
 
     static SlabChannel make(const DipoleChannel& ch, double d);

@@ -17,7 +17,8 @@ class SlabCache {
 public:
     // The profiles of a slab of thickness d (scene units).
     using Make = std::function<SlabProfiles(double d)>;
-    // Thickness nodes d_k = d_min 2^(k/32) (neighbours 2.2 % apart), k = 0 .. up to d_max.
+    // Thickness nodes d_k = d_min 2^(k/8) (neighbours 9 % apart), k = 0 .. up to d_max; a
+    // lookup interpolates linearly in ln d between the two nodes around its thickness.
     SlabCache(double d_min, double d_max, Make make);
     ~SlabCache();
     SlabCache(const SlabCache&) = delete;
@@ -41,13 +42,22 @@ public:
     };
     // The node nearest to d in log d (d below d_min: the first).
     const Node& node(double d) const;
+    // The two nodes around d and the weight of the second, linear in ln d: a result at d is
+    // (1 - t) x (a's) + t x (b's). Below d_min, or at a node: b is null and t 0.
+    struct Around {
+        const Node* a = nullptr;
+        const Node* b = nullptr;
+        double t = 0;
+    };
+    Around around(double d) const;
 
 private:
+    const Node& at(std::size_t i) const;  // node i, built on first use
     double d_min_;
     std::size_t count_;
     Make make_;
     std::unique_ptr<std::atomic<const Node*>[]> nodes_;
-    mutable std::mutex mutex_;
+    std::unique_ptr<std::mutex[]> locks_;  // one per node: threads build different nodes at once
 };
 
 }  // namespace shading

@@ -32,6 +32,39 @@ double angle_poly(const std::vector<double>& v, double mu);
 // midpoint rule, I clamped at 0): the exitance the samples imply, times eta^2 / pi.
 double exit_sum(const std::vector<double>& samples, double eta);
 
+// angle_poly's Lagrange basis at fixed points: value(v, k) is angle_poly(v, mu[k]) bit for bit
+// (the same products and sum in the same order), for every v of n samples; no cosine per
+// call. A slab node's exit distribution reads thousands of records at the same points.
+class AngleBasis {
+public:
+    AngleBasis(int n, const std::vector<double>& mu);
+    double value(const std::vector<double>& v, std::size_t k) const {
+        const double* l = &l_[k * std::size_t(n_)];
+        double sum = 0;
+        for (int j = 0; j < n_; ++j) sum += l[j] * v[std::size_t(j)];
+        return sum;
+    }
+    int samples() const { return n_; }
+
+private:
+    int n_;
+    std::vector<double> l_;  // l_[k n + j]: basis polynomial j at mu[k]
+};
+
+// exit_sum for every v of n samples at one eta, bit for bit (ExitSum(n, eta)(v) ==
+// exit_sum(v, eta)): the Fresnel factors and the basis at the 512 inside cosines once.
+class ExitSum {
+public:
+    ExitSum(int n, double eta);
+    double operator()(const std::vector<double>& samples) const;
+    double eta() const { return eta_; }
+
+private:
+    double eta_;
+    std::vector<double> fresnel2_;  // 2 (1 - Ft) per step
+    AngleBasis basis_;
+};
+
 // Tail shape (1 + k rho) exp(-k rho) / rho^3 and its integral of 2 pi rho from R to infinity.
 inline double tail_shape(double k, double rho) { return (1 + k * rho) * std::exp(-k * rho) / (rho * rho * rho); }
 inline double tail_flux(double k, double R) { return 2 * kPi * std::exp(-k * R) / R; }

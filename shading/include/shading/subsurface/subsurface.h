@@ -152,12 +152,15 @@ public:
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here) const;
     // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
-    // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R); at or
-    // above it exactly the call above.
+    // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R; linear
+    // in ln d between the two thickness nodes around it); at or above it exactly the call above.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here, double thickness) const;
 
 private:
+    // One thickness node's radiance at x (cos_o > 0), before interpolation.
+    Rgb slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n, double cos_o,
+                      const Rgb& irradiance_here, int level, std::size_t* visited) const;
     Dipole dipole_;
     SubsurfaceSettings settings_;
     std::shared_ptr<const RadialProfile> model_;
