@@ -15,10 +15,12 @@ Scenes (lengths in mm, ``mm_per_unit 1``, parallel light of colour 1, orthograph
 * **sheet**: a 240 mm wide sheet of thickness d = 0.25, 1, 4, 16 transport mean free paths of the
   channel with the longest one, lit straight from above, seen at 0 and 45 degrees from above
   (reflected) and below (transmitted): the centre pixels' mean against ``volume_ref.sheet``;
-* **sphere**: radius 1, 3 and 10 diffusion lengths (of the channel that reaches furthest), eta 1
-  (the reference's sphere is index-matched), light from normalize(1, 0.5, 1), camera from +z:
-  total flux, and the per-pixel relative rms over pixels fully inside the silhouette (the render
-  at 4x the reference's resolution, averaged over each reference pixel).
+* **sphere**: radius 1, 3 and 10 diffusion lengths (of the channel that reaches furthest), light
+  from normalize(1, 0.5, 1), camera from +z: total flux, and at eta 1 the per-pixel relative rms
+  over pixels fully inside the silhouette (the render at 4x the reference's resolution, averaged
+  over each reference pixel; ``volume_ref.sphere``). At eta != 1 the flux alone, against
+  ``volume_ref.sphere_intensity`` (analog escape through the refracting face; the image of a
+  refracting sphere has no reference).
 
 Media: published coefficients (Jensen et al. 2001, Table 2: sigma_s', sigma_a in 1/mm), with
 ``anisotropy`` g and sigma_s = sigma_s' / (1 - g), and the ``ior`` of the run.
@@ -197,42 +199,44 @@ def sphere_rows(args, fork) -> list[dict]:
     light = np.array([1.0, 0.5, 1.0]) / 1.5
     view = np.array([0.0, 0.0, 1.0])
     right, up = volume_ref.image_axes(view)
-    for name in args.media:
-        for g in args.g:
-            ss, sa = coefficients(name, g)
-            for lengths in args.radii:
-                r = lengths * diffusion_length(name)
-                t0 = time.perf_counter()
-                ref = volume_ref.sphere(ss, sa, g, 1.0, r, light, view, npix=n, n_paths=args.paths, seed=17)
-                ref_s = time.perf_counter() - t0
-                span = 2.2 * r
-                row = dict(scene="sphere", medium=name, eta=1.0, g=g, lengths=lengths, radius=r, ref_seconds=ref_s,
-                           ref_noise=float((ref.flux_err / ref.flux).max()))
-                # pixels whose whole area is inside the silhouette
-                c = (np.arange(n) + 0.5) / n * span - span / 2
-                yy, xx = np.meshgrid(-c, c, indexing="ij")
-                half = span / n / 2
-                inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
-                for method, extra in (("profile", ""), ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
-                    text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
-                                           dipole=medium_text(name, g, 1.0) + extra)
-                    img, sec = render(text, n * over, n * over, fork)
-                    small = img.reshape(n, over, n, over, 3).mean((1, 3)).transpose(2, 0, 1)  # (3, n, n)
-                    flux = small.sum((1, 2)) * (span / n) ** 2
-                    rms = []
-                    for ch in range(3):
-                        # pixels inside the silhouette where the reference is above a tenth of its peak
-                        use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
-                        rel = small[ch][use] / ref.image[ch][use] - 1
-                        rms.append(float(np.sqrt(np.mean(rel ** 2))))
-                    row[method] = dict(flux=float(np.abs(flux / ref.flux - 1).max()), rms=max(rms), seconds=sec)
-                noise = []
-                for ch in range(3):
-                    use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
-                    noise.append(float(np.sqrt(np.mean((ref.image_err[ch][use] / ref.image[ch][use]) ** 2))))
-                row["ref_pixel_noise"] = max(noise)
-                rows.append(row)
-                report(row)
+    for name, eta, g, lengths in ((m, e, g, l) for m in args.media for e in args.eta for g in args.g for l in args.radii):
+        ss, sa = coefficients(name, g)
+        r = lengths * diffusion_length(name)
+        t0 = time.perf_counter()
+        if eta != 1.0:
+            ref = volume_ref.sphere_intensity(ss, sa, g, eta, r, light, view, n_paths=args.paths, seed=17)
+        else:
+            ref = volume_ref.sphere(ss, sa, g, 1.0, r, light, view, npix=n, n_paths=args.paths, seed=17)
+        ref_s = time.perf_counter() - t0
+        span = 2.2 * r
+        row = dict(scene="sphere", medium=name, eta=eta, g=g, lengths=lengths, radius=r, ref_seconds=ref_s,
+                   ref_noise=float((ref.flux_err / ref.flux).max()))
+        # pixels whose whole area is inside the silhouette
+        c = (np.arange(n) + 0.5) / n * span - span / 2
+        yy, xx = np.meshgrid(-c, c, indexing="ij")
+        half = span / n / 2
+        inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
+        for method, extra in (("profile", ""), ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
+            text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
+                                   dipole=medium_text(name, g, eta) + extra)
+            img, sec = render(text, n * over, n * over, fork)
+            small = img.reshape(n, over, n, over, 3).mean((1, 3)).transpose(2, 0, 1)  # (3, n, n)
+            flux = small.sum((1, 2)) * (span / n) ** 2
+            rms = []
+            for ch in range(3 if eta == 1.0 else 0):
+                # pixels inside the silhouette where the reference is above a tenth of its peak
+                use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
+                rel = small[ch][use] / ref.image[ch][use] - 1
+                rms.append(float(np.sqrt(np.mean(rel ** 2))))
+            row[method] = dict(flux=float(np.abs(flux / ref.flux - 1).max()), rms=max(rms) if rms else None,
+                               seconds=sec)
+        noise = []
+        for ch in range(3 if eta == 1.0 else 0):
+            use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
+            noise.append(float(np.sqrt(np.mean((ref.image_err[ch][use] / ref.image[ch][use]) ** 2))))
+        row["ref_pixel_noise"] = max(noise) if noise else None
+        rows.append(row)
+        report(row)
     return rows
 
 
@@ -253,9 +257,10 @@ def report(row: dict) -> None:
     else:
         head += f" R {row['lengths']:4.1f} ld"
         p, w = row["profile"], row["walk"]
-        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {100 * p['rms']:6.2f} % {p['seconds']:6.2f} s | walk flux "
-                f"{100 * w['flux']:6.2f} % rms {100 * w['rms']:6.2f} % {w['seconds']:6.2f} s | ref noise "
-                f"{100 * row['ref_noise']:.2f} % (flux), {100 * row['ref_pixel_noise']:.2f} % (pixel rms)")
+        pct = lambda v: "   n/a" if v is None else f"{100 * v:6.2f}"
+        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | walk flux "
+                f"{100 * w['flux']:6.2f} % rms {pct(w['rms'])} % {w['seconds']:6.2f} s | ref noise "
+                f"{100 * row['ref_noise']:.2f} % (flux), {pct(row['ref_pixel_noise'])} % (pixel rms)")
     print(head, body, flush=True)
 
 

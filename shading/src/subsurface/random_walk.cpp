@@ -11,6 +11,11 @@
 namespace shading {
 namespace {
 
+// The step in u (radians near the solution) of the forward differences that give a beam's
+// focusing, and the cap of that factor at a caustic.
+constexpr double kFocusStep = 3e-4;
+constexpr double kMaxFocus = 100.0;
+
 std::atomic<std::uint64_t> g_walks{0}, g_vertices{0}, g_light_paths{0}, g_truncated{0}, g_auto_walked{0},
     g_auto_profiled{0};
 
@@ -84,22 +89,31 @@ RandomWalk::RandomWalk(const Medium& medium, const WalkSettings& settings) : set
 bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int reflections, Vec3 w, BeamPath* out,
                            double floor, std::uint64_t& state) const {
     constexpr int kMax = 4;
-    Vec3 normals[kMax];
-    for (int step = 0; step < settings_.fixed_point_steps; step++) {
-        // from v along w, mirrored at `reflections` faces, to the face where the light enters
-        Vec3 o = v, dir = w;
-        double length = 0, mirror = 1;
+    // One evaluation of F: from v along w, mirrored at `reflections` faces, to the face where
+    // the light enters; *next: the light's direction back at v, reversed (F(w)). The first
+    // evaluation also decides the roulette of a weak mirrored beam (out->keep).
+    struct Eval {
         WalkScene::Hit h{};
+        Vec3 to_light, dir, next;  // dir: the last leg's direction at the entry
+        double length = 0, mirror = 1;
+    };
+    bool first = true;
+    auto evaluate = [&](const Vec3& wv, Eval* e) {
+        Vec3 normals[kMax];
+        Vec3 o = v;
+        e->dir = wv;
+        e->length = 0;
+        e->mirror = 1;
         for (int j = 0; j < reflections; j++) {
-            if (!scene.leave(o, dir, &h)) return false;
-            const double c = dot(dir, h.n);
+            if (!scene.leave(o, e->dir, &e->h)) return false;
+            const double c = dot(e->dir, e->h.n);
             if (!(c > 0)) return false;
-            length += h.t;
-            mirror *= fresnel_dielectric(c, 1.0 / eta_);
-            if (j == 0 && step == 0) {
+            e->length += e->h.t;
+            e->mirror *= fresnel_dielectric(c, 1.0 / eta_);
+            if (j == 0 && first) {
                 // a reflected beam that would arrive weaker than `floor` in every channel is
                 // followed by roulette (unbiased): a deep vertex's mirrored light is negligible
-                const double bound = mirror * exp_neg(sigma_t_, length).max_component();
+                const double bound = e->mirror * exp_neg(sigma_t_, e->length).max_component();
                 if (bound < floor) {
                     if (!(uniform_double(splitmix64(state)) * floor < bound)) return false;
                     out->keep = bound / floor;
@@ -107,33 +121,95 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
                     out->keep = 1.0;
                 }
             }
-            normals[j] = h.n;
-            dir = normalize(dir - h.n * (2.0 * c));
-            o = h.p;
+            normals[j] = e->h.n;
+            e->dir = normalize(e->dir - e->h.n * (2.0 * c));
+            o = e->h.p;
         }
         if (reflections == 0) out->keep = 1.0;
-        if (!scene.leave(o, dir, &h)) return false;
-        length += h.t;
-        Vec3 to_light, along;  // at the entry point: toward the light, and the refracted beam
-        if (!scene.light_direction(light, h.p, &to_light)) return false;
-        if (!(dot(to_light, h.n) > 0)) return false;  // the light is behind the face it would enter
+        first = false;
+        if (!scene.leave(o, e->dir, &e->h)) return false;
+        e->length += e->h.t;
+        Vec3 along;  // at the entry point: the refracted beam
+        if (!scene.light_direction(light, e->h.p, &e->to_light)) return false;
+        if (!(dot(e->to_light, e->h.n) > 0)) return false;  // the light is behind the face it would enter
         if (eta_ == 1.0)
-            along = -to_light;
-        else if (!refract_into(-to_light, h.n, eta_, &along))
+            along = -e->to_light;
+        else if (!refract_into(-e->to_light, e->h.n, eta_, &along))
             return false;
         // the beam back to v: mirrored at the same faces in the opposite order
         for (int j = reflections - 1; j >= 0; j--) along = normalize(along - normals[j] * (2.0 * dot(along, normals[j])));
-        const Vec3 next = -along;
-        if (dot(next, w) > 1.0 - 1e-12) {
-            out->entry = h;
-            out->to_light = to_light;
+        e->next = -along;
+        return true;
+    };
+    // The fixed point w = F(w) by Broyden's method in the plane of the first guess:
+    // w(u) = normalize(w0 + u0 e1 + u1 e2), G(u) = P(F(w(u))) - u with P the central projection
+    // onto that plane. Its first step is the plain iteration w = F(w) (H = -I), exact in one step
+    // on a flat face; on a curved face the plain iteration contracts only by ~(1 - 1/eta)
+    // length / radius per step, and where it reached the limit of steps the light was dropped
+    // (a Marble sphere of 9 mm: 59 % of the beams, 2.5-3.4 % of the pixels' light); Broyden's
+    // secant updates converge superlinearly instead.
+    const Vec3 w0 = w;
+    const Frame plane = Frame::from_normal(w0);
+    auto residual = [&](const Eval& e, const double uu[2], double G[2]) {
+        const double c0 = dot(e.next, w0);
+        if (!(c0 > 1e-3)) return false;  // F turned the guess by ~90 degrees or more: no entry near it
+        G[0] = dot(e.next, plane.t) / c0 - uu[0];
+        G[1] = dot(e.next, plane.b) / c0 - uu[1];
+        return true;
+    };
+    auto at = [&](const double uu[2]) { return normalize(w0 + plane.t * uu[0] + plane.b * uu[1]); };
+    double u[2] = {0, 0}, u_last[2] = {0, 0}, g_last[2] = {0, 0};
+    double H[2][2] = {{-1, 0}, {0, -1}};  // inverse Jacobian estimate of G
+    bool have_last = false;
+    for (int step = 0; step < settings_.fixed_point_steps; step++) {
+        Eval e;
+        if (!evaluate(w, &e)) return false;
+        double G[2];
+        if (!residual(e, u, G)) return false;
+        if (dot(e.next, w) > 1.0 - 1e-12) {
+            // The beam's focusing (DIPOLE.md, random walk): the light entering over dA at the
+            // entry crosses v through dA_perp = t^2 |det J_G| dw (its offset at v is -t G), while
+            // dA = t^2 dw / cos_t: irradiance across the beam E cos_i (1 - F) / (cos_t |det J_G|).
+            // A flat face: J_G = -I. J_G by forward differences in u.
+            double J[2][2];
+            for (int k = 0; k < 2; k++) {
+                double uk[2] = {u[0], u[1]};
+                uk[k] += kFocusStep;
+                Eval ek;
+                double Gk[2];
+                if (!evaluate(at(uk), &ek) || !residual(ek, uk, Gk)) return false;
+                J[0][k] = (Gk[0] - G[0]) / kFocusStep;
+                J[1][k] = (Gk[1] - G[1]) / kFocusStep;
+            }
+            const double det = std::fabs(J[0][0] * J[1][1] - J[0][1] * J[1][0]);
+            out->entry = e.h;
+            out->to_light = e.to_light;
             out->w = w;
-            out->length = length;
-            out->mirror = mirror;
-            out->cos_t = std::max(0.0, dot(dir, h.n));
+            out->length = e.length;
+            out->mirror = e.mirror;
+            out->cos_t = std::max(0.0, dot(e.dir, e.h.n));
+            // a caustic (det -> 0) is integrable but has no variance bound: capped
+            out->focus = std::min(kMaxFocus, det > 0 ? 1.0 / det : kMaxFocus);
             return true;
         }
-        w = next;
+        if (have_last) {
+            // good Broyden, inverse form: H += (du - H dG) (du^T H) / (du^T H dG)
+            const double du[2] = {u[0] - u_last[0], u[1] - u_last[1]}, dG[2] = {G[0] - g_last[0], G[1] - g_last[1]};
+            const double HdG[2] = {H[0][0] * dG[0] + H[0][1] * dG[1], H[1][0] * dG[0] + H[1][1] * dG[1]};
+            const double duH[2] = {du[0] * H[0][0] + du[1] * H[1][0], du[0] * H[0][1] + du[1] * H[1][1]};
+            const double den = du[0] * HdG[0] + du[1] * HdG[1];
+            if (std::fabs(den) > 1e-300)
+                for (int i = 0; i < 2; i++)
+                    for (int j = 0; j < 2; j++) H[i][j] += (du[i] - HdG[i]) * duH[j] / den;
+        }
+        u_last[0] = u[0];
+        u_last[1] = u[1];
+        g_last[0] = G[0];
+        g_last[1] = G[1];
+        have_last = true;
+        u[0] -= H[0][0] * G[0] + H[0][1] * G[1];
+        u[1] -= H[1][0] * G[0] + H[1][1] * G[1];
+        w = at(u);
     }
     return false;
 }
@@ -160,7 +236,7 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const
             if (!(cos_i > 0 && cos_t > 0)) continue;
             // the beam's irradiance across its own direction inside: what crosses a unit of
             // surface (c cos_i Ft) spread over cos_t of it; a flat mirror keeps it, times F
-            const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t * b.mirror / b.keep;
+            const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t * b.focus * b.mirror / b.keep;
             const Rgb tr = exp_neg(sigma_t_, b.length);
             const double cos_phase = dot(b.w, d);  // light along -w, scattered to -d
             Rgb f;

@@ -73,7 +73,7 @@ struct WalkSettings {
     // object (a plane), would otherwise wander for minutes per pixel. Real media end far sooner
     // (marble: about 300 on average); the statistics count walks that reach it.
     int max_vertices = 1 << 16;
-    int fixed_point_steps = 6;         // refraction-point iterations for next-event estimation
+    int fixed_point_steps = 10;        // refraction-point iterations (Broyden) for next-event estimation
     // Shadow rays for a beam attenuated below this (exp(-sigma_t s) in every channel: a deep
     // vertex) are traced by roulette, with probability attenuation / light_floor.
     double light_floor = 1e-2;
@@ -132,6 +132,7 @@ private:
         double mirror = 1;       // product of the Fresnel reflectances on the way
         double cos_t = 0;        // cosine of the refracted beam with the inward normal at the entry
         double keep = 1;         // roulette survival probability of a mirrored beam
+        double focus = 1;        // the beam's cross-section at the entry over at v (a curved face's lens: 1 when flat)
     };
     bool beam_path(WalkScene& scene, int light, const Vec3& v, int reflections, Vec3 w, BeamPath* out,
                    double floor, std::uint64_t& state) const;
