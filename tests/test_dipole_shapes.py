@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from harness.core import runner
-from tests.test_random_walk import BLOB  # the study's blob, `{method}` in its dipole block
+from harness.core.shapes import SHAPES, bumpy_mesh  # the study's blob, a CSG difference, a mesh
 
 #: profile, two-part blob against the same two spheres: largest pixel difference / brightest pixel
 BLOB_PROFILE_MAX = 0.05
@@ -112,54 +112,6 @@ def steps(img: np.ndarray, ref: np.ndarray) -> float:
         ok = inside & np.roll(inside, -1, ax) & np.roll(inside, -2, ax)
         worst = max(worst, float(d2[ok[:d2.shape[0], :d2.shape[1]]].max()))
     return worst / float(np.median(b[inside]))
-
-
-def bumpy_mesh(nu: int = 48, nv: int = 24) -> str:
-    """A smooth mesh2 with vertex normals: a sphere of radius 0.8 with three lobes and two
-    creases (r = 0.8 (1 + 0.15 sin 3 phi sin 2 theta)), as a POV object."""
-    th = np.pi * np.arange(nv + 1) / nv
-    ph = 2 * np.pi * np.arange(nu) / nu
-    T, P = np.meshgrid(th, ph, indexing="ij")
-    r = 0.8 * (1 + 0.15 * np.sin(3 * P) * np.sin(2 * T))
-    v = np.stack([r * np.sin(T) * np.cos(P), r * np.cos(T), r * np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
-    faces = []
-    for i in range(nv):
-        for j in range(nu):
-            a, b, c, d = i * nu + j, i * nu + (j + 1) % nu, (i + 1) * nu + j, (i + 1) * nu + (j + 1) % nu
-            if i > 0:
-                faces.append((a, b, c))
-            if i < nv - 1:
-                faces.append((b, d, c))
-    f = np.array(faces)
-    n = np.zeros_like(v)
-    for k in range(3):
-        np.add.at(n, f[:, k], np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]))
-    n /= np.linalg.norm(n, axis=1)[:, None]
-    if (n * v).sum() < 0:
-        n = -n
-    vec = lambda a: ", ".join("<%.6f, %.6f, %.6f>" % tuple(x) for x in a)
-    return (f"mesh2 {{ vertex_vectors {{ {len(v)}, {vec(v)} }} normal_vectors {{ {len(n)}, {vec(n)} }} "
-            f"face_indices {{ {len(f)}, " + ", ".join("<%d, %d, %d>" % tuple(t) for t in f) + " } inside_vector y ")
-
-
-SHAPES = {
-    "blob": BLOB.replace('"Marble" {method}', '"{preset}" {extra}'),
-    # a sphere with a box and a cylinder cut out: concave edges and inner faces
-    "difference": """#version 3.7;
-global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
-camera {{ location <0, 1.3, -4.2> look_at <0, 0, 0> angle 32 }}
-light_source {{ <-4, 6, -5> rgb 1 }}
-difference {{ sphere {{ 0, 0.9 }} box {{ <-0.3, 0.2, -1.2>, <1, 1, 0.3> }}
-  cylinder {{ <-1, -0.3, -0.2>, <1, -0.3, -0.2>, 0.25 }}
-  texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "{preset}" {extra} }} }} }} }}
-""",
-    "mesh": """#version 3.7;
-global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
-camera {{ location <0, 1.3, -4.2> look_at <0, 0, 0> angle 32 }}
-light_source {{ <-4, 6, -5> rgb 1 }}
-{mesh} texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "{preset}" {extra} }} }} }} }}
-""",
-}
 
 
 @pytest.mark.parametrize("shape", sorted(SHAPES))

@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from harness.core import runner
+from harness.core.shapes import SHAPES
 from harness.reference import dipole_ref, volume_ref
 
 #: relative slack beyond 4 combined standard errors (the walk and the references are exact)
@@ -180,14 +181,8 @@ def test_refracting_sphere_matches_exact_transport(fork):
         assert abs(got[c] - want) < 4 * math.hypot(got_se[c], want_se) + WALK_SLACK * want
 
 
-BLOB = """#version 3.7;
-global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
-camera {{ location <0, 2.3, -5.2> look_at <0, 1, 0> angle 32 }}
-light_source {{ <-4, 6, -5> rgb 1 }}
-blob {{ threshold 0.55 sphere {{ <-0.45, 0.9, 0>, 0.85, 1 }} sphere {{ <0.5, 1.15, 0.1>, 0.75, 1 }}
-  sphere {{ <0.05, 0.6, -0.35>, 0.7, 1 }} cylinder {{ <-0.6, 1.5, 0>, <0.6, 1.6, 0>, 0.35, 1 }}
-  texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ "Marble" {method} }} }} }} }}
-"""
+#: the study's blob in marble, `{method}` in its dipole block
+BLOB = SHAPES["blob"].replace('"{preset}" {extra}', '"Marble" {method}')
 
 
 def patchiness(img: np.ndarray) -> float:

@@ -66,7 +66,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Mapping, Optional, Sequence, Union
 
-from harness.core import runner, tables
+from harness.core import runner, shapes, tables
 
 #: The reference scene of the pipeline issue: diffuse, phong, specular, reflection and
 #: a few lights, no new keywords. Its trace time is about 0.6 s at 1280x960 on one thread.
@@ -231,6 +231,16 @@ for _threads, _group in ((1, "grid"), (2, "grid 2 threads")):
         grid_side("halfdiff"), note="(the narrow-lobe layout's lookup)", goal=1.05, **_kw)
     row(f"{_group}: brdf_model Beckmann conductor / stock phong", grid_side("phong", "stock"), grid_side("model"),
         goal=1.25, **_kw)
+
+
+# Subsurface in real geometry (issue 31): each shape's default (profile) render against a sphere
+# of its size in the same camera and light, every preset. What a shape adds is its cloud's
+# sampling and, where it is thin, the slab profiles of its thickness nodes (built per render).
+for _shape in ("blob", "difference", "mesh"):
+    for _preset in ("Marble", "Skin1", "Ketchup", "Skimmilk"):
+        row(f"dipole {_shape} / sphere of its size: {_preset}", Side("fork", shapes.scene(_shape, _preset, sphere=True)),
+            Side("fork", shapes.scene(_shape, _preset)), width=192, height=160, threads=2, goal=3.0,
+            note="method profile, default settings")
 
 
 @dataclass
