@@ -230,6 +230,17 @@ class _Sphere:
         return x, y, z, ux - k * x, uy - k * y, uz - k * z
 
 
+def _disc_entry(rng, m: int, R: float, light, e1, e2):
+    """m points where parallel light along -light meets a sphere of radius R at the origin,
+    uniform over the disc it sees (e1, e2: the disc's axes): (x, y, z, h), h = R cos_i."""
+    rho = R * np.sqrt(rng.random(m))
+    phi = 2.0 * math.pi * rng.random(m)
+    b1, b2 = rho * np.cos(phi), rho * np.sin(phi)
+    h = np.sqrt(np.maximum(0.0, R * R - rho * rho))
+    return (b1 * e1[0] + b2 * e2[0] + h * light[0], b1 * e1[1] + b2 * e2[1] + h * light[1],
+            b1 * e1[2] + b2 * e2[2] + h * light[2], h)
+
+
 @dataclass
 class _Walk:
     """Per-path analog tallies of one batch: weight leaving through each face (order 0 =
@@ -783,13 +794,7 @@ def sphere(sigma_s, sigma_a, g: float, eta: float, radius: float, light_dir, vie
                 pr = hg_density(ux * rx + uy * ry + uz * cz, g)
                 est.add(pid, 4.0 * math.pi * w * pr * np.exp(-st * tr))
 
-            rho = R * np.sqrt(rng.random(m))
-            phi = 2.0 * math.pi * rng.random(m)
-            b1, b2 = rho * np.cos(phi), rho * np.sin(phi)
-            h = np.sqrt(np.maximum(0.0, R * R - rho * rho))
-            px = b1 * e1[0] + b2 * e2[0] + h * light[0]
-            py = b1 * e1[1] + b2 * e2[1] + h * light[1]
-            pz = b1 * e1[2] + b2 * e2[2] + h * light[2]
+            px, py, pz, h = _disc_entry(rng, m, R, light, e1, e2)
             start = (px, py, pz, np.full(m, -light[0]), np.full(m, -light[1]), np.full(m, -light[2]),
                      np.ones(m))                 # unit weights (roulette is relative); power below
             wk = _walk(rng, start, ss[c], sa[c], g, 1.0, geom, 1, on_collision)
@@ -895,13 +900,7 @@ def sphere_intensity(sigma_s, sigma_a, g: float, eta: float, radius: float, ligh
                 if sel.any():
                     tally.add(pid[sel], w[sel])
 
-            rho = R * np.sqrt(rng.random(m))
-            phi = 2.0 * math.pi * rng.random(m)
-            b1, b2 = rho * np.cos(phi), rho * np.sin(phi)
-            h = np.sqrt(np.maximum(0.0, R * R - rho * rho))
-            px = b1 * e1[0] + b2 * e2[0] + h * light[0]
-            py = b1 * e1[1] + b2 * e2[1] + h * light[1]
-            pz = b1 * e1[2] + b2 * e2[2] + h * light[2]
+            px, py, pz, h = _disc_entry(rng, m, R, light, e1, e2)
             # refraction in: n the outward normal, cos_i = h / R
             nx, ny, nz = px / R, py / R, pz / R
             ci = h / R
