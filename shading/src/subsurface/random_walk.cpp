@@ -170,18 +170,26 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
             // The beam's focusing (DIPOLE.md, random walk): the light entering over dA at the
             // entry crosses v through dA_perp = t^2 |det J_G| dw (its offset at v is -t G), while
             // dA = t^2 dw / cos_t: irradiance across the beam E cos_i (1 - F) / (cos_t |det J_G|).
-            // A flat face: J_G = -I. J_G by forward differences in u.
+            // A flat face: J_G = -I. J_G by one-sided differences in u (the other side where a
+            // step leaves the face, at a silhouette).
             double J[2][2];
             for (int k = 0; k < 2; k++) {
-                double uk[2] = {u[0], u[1]};
-                uk[k] += kFocusStep;
-                Eval ek;
-                double Gk[2];
-                if (!evaluate(at(uk), &ek) || !residual(ek, uk, Gk)) return false;
-                J[0][k] = (Gk[0] - G[0]) / kFocusStep;
-                J[1][k] = (Gk[1] - G[1]) / kFocusStep;
+                bool done = false;
+                for (double step : {kFocusStep, -kFocusStep}) {
+                    double uk[2] = {u[0], u[1]};
+                    uk[k] += step;
+                    Eval ek;
+                    double Gk[2];
+                    if (!evaluate(at(uk), &ek) || !residual(ek, uk, Gk)) continue;
+                    J[0][k] = (Gk[0] - G[0]) / step;
+                    J[1][k] = (Gk[1] - G[1]) / step;
+                    done = true;
+                    break;
+                }
+                if (!done) return false;
             }
             const double det = std::fabs(J[0][0] * J[1][1] - J[0][1] * J[1][0]);
+            if (!std::isfinite(det)) return false;
             out->entry = e.h;
             out->to_light = e.to_light;
             out->w = w;
