@@ -175,14 +175,14 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
             double J[2][2];
             for (int k = 0; k < 2; k++) {
                 bool done = false;
-                for (double step : {kFocusStep, -kFocusStep}) {
+                for (double delta : {kFocusStep, -kFocusStep}) {
                     double uk[2] = {u[0], u[1]};
-                    uk[k] += step;
+                    uk[k] += delta;
                     Eval ek;
                     double Gk[2];
                     if (!evaluate(at(uk), &ek) || !residual(ek, uk, Gk)) continue;
-                    J[0][k] = (Gk[0] - G[0]) / step;
-                    J[1][k] = (Gk[1] - G[1]) / step;
+                    J[0][k] = (Gk[0] - G[0]) / delta;
+                    J[1][k] = (Gk[1] - G[1]) / delta;
                     done = true;
                     break;
                 }
