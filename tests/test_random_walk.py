@@ -26,6 +26,7 @@ import pytest
 
 from harness.core import runner
 from harness.core.shapes import SHAPES
+from harness.reports.walk_bench import SPHERE  # an orthographic view of a sphere at the origin
 from harness.reference import dipole_ref, volume_ref
 
 #: relative slack beyond 4 combined standard errors (the walk and the references are exact)
@@ -141,14 +142,6 @@ def test_shadow_edge_under_slanted_light(fork):
         print(f"channel {c}: plateau {plateau:.4f}, x=+0.25 fork {rows[nx // 2, c] / plateau:.3f} "
               f"reference {ref.radiance[c, nx // 2] / plateau:.3f}, max |diff| {100 * diff.max() / plateau:.2f} % of plateau")
         assert (diff <= allowed).all()
-
-
-SPHERE = """#version 3.7;
-global_settings {{ assumed_gamma 1.0 }}
-camera {{ orthographic location <0, 0, {far}> direction <0, 0, -1> right {right} up {up} }}
-light_source {{ {light} * 1000 rgb 1 parallel point_at <0, 0, 0> }}
-sphere {{ 0, {r} texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} }} }} }}
-"""
 
 
 def test_refracting_sphere_matches_exact_transport(fork):

@@ -26,15 +26,13 @@ inline std::string num(double v) { return detail::fmt(v, 9); }
 // Nodes of the inside-radiance samples on (0, 1], increasing, the last 1: those of
 // McSettings::radiance_cosines (the Monte Carlo's next-event estimate is made there).
 inline double angle_node(int j, int n) { return 0.5 * (1.0 - std::cos(kPi * (j + 0.5) / (n - 0.5))); }
-// Lagrange polynomial through (angle_node(j), v[j]) evaluated at mu.
-double angle_poly(const std::vector<double>& v, double mu);
 // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) mu_o dmu_o of inside-radiance samples I (a 512-step
 // midpoint rule, I clamped at 0): the exitance the samples imply, times eta^2 / pi.
 double exit_sum(const std::vector<double>& samples, double eta);
 
-// angle_poly's Lagrange basis at fixed points: value(v, k) is angle_poly(v, mu[k]) bit for bit
-// (the same products and sum in the same order), for every v of n samples; no cosine per
-// call. A slab node's exit distribution reads thousands of records at the same points.
+// The Lagrange polynomial through (angle_node(j), v[j]), j < n, at fixed points: value(v, k)
+// is its value at mu[k] for every v of n samples, the basis computed once (no cosine per
+// call): a slab node's exit distribution reads thousands of records at the same points.
 class AngleBasis {
 public:
     AngleBasis(int n, const std::vector<double>& mu);
@@ -44,23 +42,20 @@ public:
         for (int j = 0; j < n_; ++j) sum += l[j] * v[std::size_t(j)];
         return sum;
     }
-    int samples() const { return n_; }
 
 private:
     int n_;
     std::vector<double> l_;  // l_[k n + j]: basis polynomial j at mu[k]
 };
 
-// exit_sum for every v of n samples at one eta, bit for bit (ExitSum(n, eta)(v) ==
-// exit_sum(v, eta)): the Fresnel factors and the basis at the 512 inside cosines once.
+// exit_sum for every v of n samples at one eta: the Fresnel factors and the basis at the 512
+// inside cosines once (exit_sum makes one per call).
 class ExitSum {
 public:
     ExitSum(int n, double eta);
     double operator()(const std::vector<double>& samples) const;
-    double eta() const { return eta_; }
 
 private:
-    double eta_;
     std::vector<double> fresnel2_;  // 2 (1 - Ft) per step
     AngleBasis basis_;
 };
