@@ -180,7 +180,7 @@ def main(brdftool, out):
     put(mdir, "bad-dim-standard-short.binary", struct.pack("<3i", 90, 90, 180) + ok[12:])
     put(mdir, "bad-inf.binary", merl((2, 2, 4), lambda c, k: math.inf if k == 5 else 1.0))
 
-    # Exact-profile tables (.ssp, format 3): checksum of the whole file (its own 8 bytes read as
+    # Exact-profile tables (.ssp, format 4): checksum of the whole file (its own 8 bytes read as
     # zeros) at 24..31, payload offset at 12..15.
     sdir = os.path.join(out, "ssp")
     os.makedirs(sdir, exist_ok=True)

@@ -124,7 +124,7 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
         {"empty", [](auto& b) { b.clear(); }, "offset 0: expected a header of 160 bytes"},
         {"truncated header", [](auto& b) { b.resize(100); }, "offset 100: expected a header"},
         {"magic", [](auto& b) { b[0] = 'X'; }, "offset 0: expected the magic"},
-        {"version", [&](auto& b) { set32(b, 8, 2); }, "offset 8: expected format version 3, found 2 (rebuild it: make brdf-data"},
+        {"version", [&](auto& b) { set32(b, 8, 2); }, "offset 8: expected format version 4, found 2 (rebuild it: make brdf-data"},
         {"flags", [&](auto& b) { set32(b, 36, 4), patch_checksum(b); }, "offset 36: expected flags"},
         {"g count", [&](auto& b) { set32(b, 40, 0), patch_checksum(b); }, "offset 40: expected 1 to 64 g nodes, found 0"},
         {"albedo count", [&](auto& b) { set32(b, 52, 100000), patch_checksum(b); }, "offset 52: expected 4 to 1000 albedo nodes"},
@@ -175,7 +175,7 @@ TEST(ProfileTables, EveryChangedByteIsRefused) {
             b[i] ^= bit;
             const std::string err = load_error(b);
             ++tried;
-            const char* want = i < 8 ? "t.ssp: offset 0: expected the magic" : i < 12 ? "t.ssp: offset 8: expected format version 3"
+            const char* want = i < 8 ? "t.ssp: offset 0: expected the magic" : i < 12 ? "t.ssp: offset 8: expected format version 4"
                                                                                       : "t.ssp: offset 24: expected the file's checksum";
             ASSERT_EQ(err.rfind(want, 0), 0u) << "byte " << i << " ^ " << int(bit) << ": " << err;
         }

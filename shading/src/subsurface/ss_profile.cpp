@@ -117,6 +117,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     lnv_.assign(nb, 0.0);
     angle_.assign(129, 0.0);  // inside radiance at mu' = mu_c + (1 - mu_c) j / 128 (this channel's eta)
     incidence_.assign(nci, 0.0);
+    shift_.assign(nci, 0.0);
     ci_ = s.cos_inside;
     double ln_total = 0, single = 0, ballistic = 0, tail_k = 0, wsum_total = 0, own_flux = 0;
     const double mu_c = critical_cos(eta);
@@ -155,6 +156,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     tail_k += ww * r.tail_k;
                     for (int b = 0; b < nb; ++b) lnv_[b] += ww * (std::log(std::max(r.profile[b], kTiny)) + ln_scale);
                     for (int j = 0; j < nci; ++j) incidence_[j] += ww * r.incidence[j];
+                    for (int j = 0; j < nci && j < int(r.shift.size()); ++j) shift_[j] += ww * r.shift[j];
                     for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_basis.value(r.angle, std::size_t(j));
                     // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of the stored samples
                     // pi I / M: the exit distribution's integral (1 up to the interpolant's error).
@@ -170,6 +172,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     tail_k_ = std::max(0.0, tail_k);
     for (double& v : angle_) v = std::max(0.0, v);
     for (double& v : incidence_) v = std::max(0.0, v);
+    for (double& v : shift_) v = std::max(0.0, v);
 
     // Disc integrals at the nodes, then the tail beyond the last node (continuous there), then
     // one scale so the profile integrates to the interpolated total.
@@ -268,18 +271,22 @@ double ChannelProfile::exit_factor(double cos_o) const {
     return ft * i * angle_norm_;
 }
 
-double ChannelProfile::entry_factor(double cos_o) const {
-    if (!(cos_o > 0)) return incidence_.front();
+double ChannelProfile::interpolate_inside(const std::vector<double>& v, double cos_o) const {
+    if (!(cos_o > 0)) return v.front();
     // Snell: the refracted beam's inside cosine
     const double cos_i = std::sqrt(std::max(0.0, 1.0 - (1.0 - std::min(1.0, cos_o * cos_o)) / (eta_ * eta_)));
     const int n = int(ci_.size());
-    if (cos_i <= ci_.front()) return incidence_.front();
-    if (cos_i >= ci_.back()) return incidence_.back();
+    if (cos_i <= ci_.front()) return v.front();
+    if (cos_i >= ci_.back()) return v.back();
     int i = int(std::upper_bound(ci_.begin(), ci_.end(), cos_i) - ci_.begin()) - 1;
     i = std::clamp(i, 0, n - 2);
     const double f = (cos_i - ci_[i]) / (ci_[i + 1] - ci_[i]);
-    return incidence_[i] * (1 - f) + incidence_[i + 1] * f;
+    return v[i] * (1 - f) + v[i + 1] * f;
 }
+
+double ChannelProfile::entry_factor(double cos_o) const { return interpolate_inside(incidence_, cos_o); }
+
+double ChannelProfile::entry_shift(double cos_o) const { return interpolate_inside(shift_, cos_o); }
 
 double alpha_prime_for_total(const ProfileTables& t, double total, double g, double eta,
                              const std::function<double(double)>& single) {

@@ -405,6 +405,7 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                         process_face(face == 0 ? normal.top[ie] : normal.bottom[ie], normal.settings, k, g, s.eta[ie], rec,
                                      diag);
                         rec.incidence.assign(s.cos_inside.size(), 1.0);
+                        rec.shift.assign(s.cos_inside.size(), 0.0);
                     }
             // Incidence factor: totals only, fewer photons.
             int clamped = 0;
@@ -422,13 +423,19 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                     for (int face = 0; face < t->faces; ++face)
                         for (int k = 0; k < s.albedos; ++k) {
                             FaceRecord& rec = rec_at(ig, ie, id, face, k);
-                            const double m = (face == 0 ? r.top[ie] : r.bottom[ie]).multi[k];
+                            const McFace& f = face == 0 ? r.top[ie] : r.bottom[ie];
+                            const double m = f.multi[k];
                             // A ratio outside [0.05, 20] is noise of a run with too few paths for
                             // this albedo (the physical factor stays within a few tenths of 1):
                             // clamped, and counted in the log.
                             double ratio = rec.multi > 0 && m > 0 ? m / rec.multi : 1.0;
                             if (ratio < 0.05 || ratio > 20) ++clamped;
                             rec.incidence[ic] = std::clamp(ratio, 0.05, 20.0);
+                            // The exits' mean offset along the beam, mean free paths -> transport
+                            // mfp (x (1 - alpha g)); a negative mean is noise (the beam pushes
+                            // its light forward): 0.
+                            const double mean_x = m > 0 ? f.multi_x[k] / m : 0.0;
+                            rec.shift[ic] = std::clamp(mean_x * (1.0 - t->albedo(k) * g), 0.0, 100.0);
                         }
             }
             if (log) {

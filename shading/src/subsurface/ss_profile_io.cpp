@@ -32,7 +32,7 @@ constexpr std::uint32_t kFlagTransmission = 1;
 constexpr int kFixedFields = 6;  // multi, single, ballistic, tail_k, tail_a, rho_tail
 
 int record_floats(const ProfileBuildSettings& s) {
-    return kFixedFields + s.angle_nodes + int(s.cos_inside.size()) + s.bins.count;
+    return kFixedFields + s.angle_nodes + 2 * int(s.cos_inside.size()) + s.bins.count;
 }
 
 }  // namespace
@@ -102,6 +102,7 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
         for (double v : {r.multi, r.single, r.ballistic, r.tail_k, r.tail_a, r.rho_tail}) put_f32(b, float(v));
         for (double v : r.angle) put_f32(b, float(v));
         for (double v : r.incidence) put_f32(b, float(v));
+        for (double v : r.shift) put_f32(b, float(v));
         for (double v : r.profile) put_f32(b, float(v));
     }
     bytes::wr_u32(b, 12, std::uint32_t(off));
@@ -261,6 +262,11 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
             r.incidence[j] = value("incidence factor " + std::to_string(j), 1e-6, 1e6);
         if (std::fabs(r.incidence.back() - 1.0) > 1e-6)
             fail(p - 4, label("incidence factor at normal incidence") + ": expected 1, found " + num(r.incidence.back()));
+        r.shift.resize(s.cos_inside.size());
+        for (std::size_t j = 0; j < s.cos_inside.size(); ++j)
+            r.shift[j] = value("exit shift " + std::to_string(j), 0.0, 100.0);
+        if (r.shift.back() != 0.0)
+            fail(p - 4, label("exit shift at normal incidence") + ": expected 0, found " + num(r.shift.back()));
         r.profile.resize(s.bins.count);
         for (int b = 0; b < s.bins.count; ++b) r.profile[b] = value("radius node " + std::to_string(b), 0.0, 1e30);
     }

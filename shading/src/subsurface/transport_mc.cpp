@@ -89,12 +89,14 @@ struct Rng {
 
 struct FaceTally {
     std::vector<double> ballistic, single, multi, single_sq, multi_sq, radial, radial_sq, arrivals;
+    std::vector<double> multi_x;  // sum of the multiple-scattering exits' weight times x
     std::vector<double> ne;  // next-event radiance by order: ne[n * nodes + j], n <= radiance_orders
     void init(std::size_t K, int nb, int na, bool radial_on, int ne_orders, int ne_nodes) {
         ne.assign(ne_orders > 0 ? std::size_t(ne_orders + 1) * ne_nodes : 0, 0.0);
         ballistic.assign(K, 0.0);
         single.assign(K, 0.0);
         multi.assign(K, 0.0);
+        multi_x.assign(K, 0.0);
         single_sq.assign(K, 0.0);
         multi_sq.assign(K, 0.0);
         radial.assign(radial_on ? K * nb : 0, 0.0);
@@ -108,6 +110,7 @@ struct FaceTally {
         acc(ballistic, o.ballistic);
         acc(single, o.single);
         acc(multi, o.multi);
+        acc(multi_x, o.multi_x);
         acc(single_sq, o.single_sq);
         acc(multi_sq, o.multi_sq);
         acc(radial, o.radial);
@@ -352,6 +355,7 @@ private:
         for (std::size_t k = lowest; k < K_; ++k) {
             const double c = w_exit * pw[k];
             face.multi[k] += c;
+            face.multi_x[k] += c * x;
             ps[k] += c;
         }
         if (!s_.radial) return;
@@ -398,12 +402,14 @@ void finish_face(const FaceTally& t, const FaceTally* sq_short, const McSettings
     out.ballistic.resize(K);
     out.single.resize(K);
     out.multi.resize(K);
+    out.multi_x.resize(K);
     out.single_se.resize(K);
     out.multi_se.resize(K);
     for (std::size_t k = 0; k < K; ++k) {
         out.ballistic[k] = t.ballistic[k] / nf;
         out.single[k] = t.single[k] / nf;
         out.multi[k] = t.multi[k] / nf;
+        out.multi_x[k] = t.multi_x[k] / nf;
         const double ss = sq_short ? sq_short->single[k] : 0.0, ms = sq_short ? sq_short->multi[k] : 0.0;
         out.single_se[k] = se(t.single[k] - ss, t.single_sq[k], ss, sq_short ? sq_short->single_sq[k] : 0.0);
         out.multi_se[k] = se(t.multi[k] - ms, t.multi_sq[k], ms, sq_short ? sq_short->multi_sq[k] : 0.0);

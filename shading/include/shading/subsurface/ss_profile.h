@@ -34,11 +34,11 @@ namespace shading {
 
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
-constexpr std::uint32_t kProfileGeneratorVersion = 3;
+constexpr std::uint32_t kProfileGeneratorVersion = 4;
 // The .ssp layout's version (3: the checksum at bytes 24..31 covers the whole file, header
-// included; DIPOLE.md 10.4). Files of another version are refused; `sstool build --if-stale`
+// included; 4: each record holds the oblique beams' exit shifts; DIPOLE.md 10.4). Files of another version are refused; `sstool build --if-stale`
 // (make brdf-data) rebuilds them.
-constexpr std::uint32_t kProfileFormatVersion = 3;
+constexpr std::uint32_t kProfileFormatVersion = 4;
 
 class ProfileError : public std::runtime_error {
 public:
@@ -85,6 +85,9 @@ struct FaceRecord {
     double rho_tail = 0;
     std::vector<double> angle;      // pi L_inside / M at the inside cosines angle_cosine(j)
     std::vector<double> incidence;  // multi(cos_inside[i]) / multi(1)
+    // The mean offset of the multiple-scattering exits from the entry point along the oblique
+    // beam's tangential direction at cos_inside[i], transport mfp (0 at normal incidence).
+    std::vector<double> shift;
     std::vector<double> profile;    // Rd at the radial nodes (per transport mfp^2)
 };
 
@@ -156,15 +159,20 @@ public:
     // multi(cos_i) / multi(1) for the outside incidence cosine cos_i: refracted with this
     // channel's eta, then linear between the tables' inside cosines.
     double entry_factor(double cos_i) const;
+    // The mean offset (transport mfp) of the multiple-scattering exitance from the entry point,
+    // along the refracted beam's tangential direction, for light arriving at outside cosine
+    // cos_i: interpolated like entry_factor (0 at normal incidence).
+    double entry_shift(double cos_i) const;
 
 private:
+    double interpolate_inside(const std::vector<double>& v, double cos_o) const;
     double node_value(int b) const { return std::exp(lnv_[b]); }
     double segment_integral(int b, double r1, double r2) const;  // of 2 pi rho rd over [r1, r2] in segment b
     int segment_of(double rho) const;
     double alpha_prime_ = 0, total_ = 0, single_ = 0, ballistic_ = 0, eta_ = 1;
     std::vector<double> rho_, lnv_, cum_;  // nodes, ln Rd at the nodes, disc integral at the nodes
     double tail_k_ = 0, tail_a_ = 0;       // beyond the last node
-    std::vector<double> angle_, ci_, incidence_;
+    std::vector<double> angle_, ci_, incidence_, shift_;
     double angle_norm_ = 1;
 };
 

@@ -84,6 +84,10 @@ struct McFace {
     std::vector<double> ballistic;  // exits without scattering (n = 0)
     std::vector<double> single;     // n = 1
     std::vector<double> multi;      // n >= 2
+    // Of the same exits, the weight times the exit's x (mean free paths; the beam travels
+    // toward +x inside): multi_x / multi is their mean offset along the beam's tangential
+    // direction (0 at normal incidence, by symmetry).
+    std::vector<double> multi_x;
     std::vector<double> single_se, multi_se;  // standard errors (photons taken as independent)
     // Multiple-scattering exitance per unit area (transport mfp^2) in RadialBins:
     // radial[k * bins.count + b], and its standard error (exits taken as independent).
