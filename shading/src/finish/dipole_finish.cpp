@@ -91,6 +91,9 @@ public:
         return v;
     }
     double thickness(const Vec3& p, const Vec3& n) override { return object_.thickness(p, n); }
+    int light_count() override { return object_.light_count(); }
+    bool light_direction(int i, const Vec3& p, Vec3* l) override { return object_.light_direction(i, p, l); }
+    Rgb light_colour(int i, const Vec3& p, const Vec3& n, const Vec3& l) override { return object_.light_colour(i, p, n, l); }
 
 private:
     DipoleObject& object_;
@@ -163,6 +166,7 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (p.error_bound) settings.max_angle = *p.error_bound;
     if (p.refine_levels) settings.max_levels = *p.refine_levels;
     if (p.thin_geometry) settings.thin = *p.thin_geometry;
+    if (p.directional) settings.directional = *p.directional;
     if (p.samples) settings.walk.samples = *p.samples;
     if (p.method == DipoleParams::Method::RandomWalk) {
         // exact transport: nothing tabulated, single scattering is part of the walk
@@ -185,6 +189,12 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
         // walked objects have single scattering in the walk: the profile's objects get it at
         // each lookup (finish_subsurface_radiance), not from the BRDF the light loop adds
         settings.method = SubsurfaceSettings::Method::Auto;
+        settings.auto_single_scatter = settings.single_scatter;
+        settings.single_scatter = false;
+    } else if (p.method == DipoleParams::Method::Profile && exact && settings.directional &&
+               exact->entry_shift(0.5).max_component() > 0) {
+        // direction-aware profiles: single scattering at each lookup too, lit by the light
+        // upstream of the point (shading/DIPOLE.md 6b)
         settings.auto_single_scatter = settings.single_scatter;
         settings.single_scatter = false;
     }
@@ -214,29 +224,35 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
             return walk->radiance(walker, x, n, to_eye, point_seed(x));
         }
     }
+    Sampler sampler(object);
+    const PointCloud* cloud = nullptr;
     Rgb single(0.0);
-    if (automatic && settings.auto_single_scatter) {
-        // the single-scattering BRDF of a half-space, lit by every light as the light loop would
+    if ((automatic || subsurface.directional()) && settings.auto_single_scatter) {
+        // the single-scattering BRDF of a half-space, lit by every light as the light loop would;
+        // with a direction-aware profile, times the light upstream over the light at x
+        // (Subsurface::single_scatter_upstream)
         const Frame frame = Frame::from_normal(n);
         const Vec3 wo = frame.to_local(to_eye);
+        const bool upstream = subsurface.directional();
+        if (upstream) cloud = &subsurface.cloud(key, sampler);
         for (int i = 0, lights = object.light_count(); i < lights; i++) {
             Vec3 to_light;
             if (!object.light_direction(i, x, &to_light)) continue;
             const double cos_i = dot(to_light, n);
             if (!(cos_i > 0)) continue;
-            const Rgb f = subsurface.dipole().single_scatter_brdf(wo, frame.to_local(to_light));
+            Rgb f = subsurface.dipole().single_scatter_brdf(wo, frame.to_local(to_light));
             if (!(f.max_component() > 0)) continue;
+            if (upstream) f = f * subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light);
             single += object.light_colour(i, x, n, to_light) * f * (kPi * cos_i);
         }
     }
-    Sampler sampler(object);
-    const PointCloud& cloud = subsurface.cloud(key, sampler);
+    if (!cloud) cloud = &subsurface.cloud(key, sampler);
     const Rgb e = here();
     // the point's own thickness, one ray, only where the object is thinner than the finish's
     // slab threshold somewhere (thick objects: infinity, no ray)
-    const double thickness = subsurface.wants_thickness(cloud) ? object.thickness(x, n)
-                                                               : std::numeric_limits<double>::infinity();
-    return subsurface.radiance(cloud, x, n, to_eye, e, thickness) + single;
+    const double thickness = subsurface.wants_thickness(*cloud) ? object.thickness(x, n)
+                                                                : std::numeric_limits<double>::infinity();
+    return subsurface.radiance(*cloud, x, n, to_eye, e, thickness) + single;
 }
 
 std::vector<std::string> finish_statistics() {

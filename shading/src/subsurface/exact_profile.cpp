@@ -127,6 +127,13 @@ Rgb ExactProfile::entry_factor(double cos_i) const {
     return v;
 }
 
+Rgb ExactProfile::entry_shift(double cos_i) const {
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = ch_[c]->entry_shift(cos_i) / st_[c];
+    return v;
+}
+
 SlabProfiles ExactProfile::slab_profiles(const Dipole& dipole, double d) const {
     // With slab tables covering (g, eta): its own slabs (DIPOLE.md 6a), the multipole where a
     // channel's thickness lies outside the tables' nodes.

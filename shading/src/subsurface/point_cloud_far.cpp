@@ -241,3 +241,207 @@ Rgb PointCloud::exact_sum(const RdProfile& same, const RdProfile* transmit, cons
 }
 
 }  // namespace shading
+
+namespace shading {
+
+// ---------------------------------------------------------------- direction-aware profiles
+
+Rgb PointCloud::far_exitance_shifted(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h,
+                                     double max_angle, double cutoff, Rgb* near_irradiance, std::size_t* visited) const {
+    return shifted_sum<false>(rd, x, nx, r0, h, max_angle, cutoff * cutoff, near_irradiance, visited);
+}
+
+Rgb PointCloud::far_exitance_shifted_exact(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h,
+                                           Rgb* near_irradiance) const {
+    return shifted_sum<true>(rd, x, nx, r0, h, 0.0, kInf, near_irradiance, nullptr);
+}
+
+template <bool kExact>
+Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
+                            double cut2, Rgb* near_irradiance, std::size_t* visited) const {
+    constexpr int K = kSmearNodes;
+    Rgb sum;
+    // The near field: the (1 - w)-weighted flux of the images inside the window, per channel and
+    // image, over the larger of two (1 - w)-weighted areas: the points' own there (the surface
+    // about x: where few images land, as just upstream of a shadow edge, their flux density is
+    // low) and the images' (a mean of E_t: where the partition of unity gives the points about
+    // x little area and some image much, the density would overshoot).
+    double nflux[3][K] = {}, iarea[3][K] = {}, narea = 0;
+    const double inner2 = sqr(std::max(0.0, r0 - h)), outer = r0 + h, outer2 = outer * outer;
+    const double angle2 = max_angle * max_angle;
+    const double gain_cap = std::max(1.0, 1.0 / std::max(angle2, 1e-300));
+    const double cut = std::sqrt(cut2);
+    std::size_t opened = 0;
+    auto add_point = [&](int i) {
+        const Leaf& s = leaves_[i];
+        const LeafShift& ls = leaf_shift_[i];
+        double own = 0;  // (1 - w) A at the point itself
+        const Vec3 v0 = x - s.p;
+        const double v0n = dot(v0, nx), v0n2 = v0n * v0n;
+        {
+            const double r2 = dot(v0, v0);
+            if (r2 < outer2) own = (1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h))) * points_[i].area;
+            narea += own;
+        }
+        for (int c = 0; c < 3; ++c) {
+            const double f = s.flux[c];
+            if (!(f > 0)) {  // unlit in c: no shift, every image at the point
+                if (own > 0)
+                    for (int k = 0; k < K; ++k) iarea[c][k] += own;
+                continue;
+            }
+            const Vec3& sc = ls.s[c];
+            if (!kExact) {
+                // Far from x (beyond six shifts and the window's ramp): the images' exponential
+                // spread to second order about the mean image, R(d) + (1/2) tr(H S), S = s s^T
+                // (the exponential's variance |s|^2 along s): one profile lookup, not K.
+                const Vec3 v = v0 - sc;
+                const double vn = dot(v, nx);
+                const double d2 = std::max(0.0, dot(v, v) - vn * vn + v0n2), s2 = dot(sc, sc);
+                if (d2 > 36.0 * s2 && d2 > sqr(outer + 2.0 * std::sqrt(s2))) {
+                    if (d2 > cut2) continue;
+                    const double d = std::sqrt(d2), inv = 1.0 / d;
+                    const double us = dot(v, sc) * inv;
+                    double f0, f1, f2;
+                    rd.eval_channel(c, d, &f0, &f1, &f2);
+                    sum[c] += std::max(0.0, f0 + 0.5 * (f2 * us * us + f1 * inv * (s2 - us * us))) * f;
+                    continue;
+                }
+            }
+            for (int k = 0; k < K; ++k) {
+                // the distance across x's tangent plane, with the point's own height above it: a
+                // shift along a curved surface does not lift the image off it
+                const Vec3 v = v0 - sc * kSmearT[k];
+                const double vn = dot(v, nx);
+                const double r2 = std::max(0.0, dot(v, v) - vn * vn + v0n2);
+                if (r2 > cut2) continue;
+                double w = 1.0;
+                if (r2 < outer2) {
+                    w = r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h);
+                    nflux[c][k] += (1.0 - w) * f;
+                    iarea[c][k] += (1.0 - w) * points_[i].area;
+                }
+                if (w > 0) {
+                    const double r = std::sqrt(r2);
+                    sum[c] += kSmearW[k] * w * f * (kExact ? rd.exact(r)[c] : rd.rd_channel(c, r));
+                }
+            }
+        }
+    };
+    if (kExact) {
+        for (int i = 0; i < int(points_.size()); ++i) add_point(i);
+    } else {
+        int stack[8 * kMaxDepth + 16];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const int k = stack[--top];
+            const Node& nd = nodes_[k];
+            ++opened;
+            if (!nd.lit) continue;
+            const NodeShift& ns = node_shift_[k];
+            // every image of the node's points lies within `reach` of its box
+            const double bd = std::sqrt(box_distance2(x, nd.lo, nd.hi));
+            if (bd - ns.reach > cut) continue;
+            if (nd.child < 0) {
+                for (int i = nd.first; i < nd.first + nd.count; ++i) add_point(i);
+                continue;
+            }
+            // Aggregated: nodes whose first two images lie beyond the window's ramp (the third,
+            // a hundredth of the light, may reach into it: its near part then counts as far) and
+            // that are small as seen from x.
+            if (bd - kSmearT[1] * ns.spread > outer) {
+                const Agg& g = aggs_[k];
+                const double hn = dot(g.centre - x, nx);
+                // the distance across x's tangent plane to the centre moved by o, its direction
+                auto across = [&](const Vec3& o, Vec3* u) {
+                    const Vec3 v = g.centre + o - x;
+                    const double vn = dot(v, nx);
+                    const double d = std::sqrt(std::max(1e-300, dot(v, v) - vn * vn + hn * hn));
+                    *u = v * (1.0 / d);
+                    return d;
+                };
+                double dmin2 = kInf;
+                for (int c = 0; c < 3; ++c) {
+                    Vec3 u;
+                    dmin2 = std::min(dmin2, sqr(across(ns.mean[c] * kSmearT[0], &u)));
+                }
+                if (double(nd.diag2) < angle2 * std::min(rd.angle_gain2(dmin2), gain_cap) * dmin2) {
+                    const double* C = g.cov;
+                    // R at distance d (direction u) to second order in the covariance C + extra s s^T
+                    auto taylor = [&](int c, double d, const Vec3& u, const Vec3& sx) {
+                        const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
+                                           u.y * (C[3] * u.x + C[1] * u.y + C[5] * u.z) +
+                                           u.z * (C[4] * u.x + C[5] * u.y + C[2] * u.z);
+                        const double us = dot(u, sx);
+                        const double uCs = uCu + us * us, tr = C[0] + C[1] + C[2] + dot(sx, sx);
+                        double f0, f1, f2;
+                        rd.eval_channel(c, d, &f0, &f1, &f2);
+                        return std::max(0.0, f0 + 0.5 * uCs * f2 + 0.5 * (tr - uCs) / d * f1);
+                    };
+                    for (int c = 0; c < 3; ++c) {
+                        if (!(g.flux[c] > 0)) continue;
+                        const Vec3& sc = ns.mean[c];
+                        Vec3 u;
+                        const double dm = across(sc, &u);
+                        double r;
+                        if (dm * dm > 36.0 * dot(sc, sc)) {
+                            // far beyond the spread: the mean image, the exponential's variance
+                            // |s|^2 along s added to the covariance
+                            r = taylor(c, dm, u, sc);
+                        } else {
+                            r = 0;
+                            for (int j = 0; j < K; ++j) {
+                                const double dj = across(sc * kSmearT[j], &u);
+                                r += kSmearW[j] * taylor(c, dj, u, Vec3(0, 0, 0));
+                            }
+                        }
+                        sum[c] += r * g.flux[c];
+                    }
+                    continue;
+                }
+            }
+            for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+        }
+    }
+    if (visited) *visited += opened;
+    if (near_irradiance)
+        for (int c = 0; c < 3; ++c) {
+            double e = 0;
+            for (int k = 0; k < K; ++k) {
+                const double a = std::max(narea, iarea[c][k]);
+                if (a > 0) e += kSmearW[k] * nflux[c][k] / a;
+            }
+            (*near_irradiance)[c] = e;
+        }
+    return sum;
+}
+
+Rgb PointCloud::irradiance_about(const Vec3& y, double h) const {
+    Rgb flux;
+    double area = 0;
+    if (nodes_.empty()) return flux;
+    const double r0 = 2.0 * h, inner2 = sqr(r0 - h), outer = r0 + h, outer2 = outer * outer;
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& nd = nodes_[stack[--top]];
+        if (box_distance2(y, nd.lo, nd.hi) >= outer2) continue;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const Vec3 v = y - leaves_[i].p;
+                const double r2 = dot(v, v);
+                if (r2 >= outer2) continue;
+                const double w = 1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h));
+                flux += leaves_[i].flux * w;
+                area += points_[i].area * w;
+            }
+            continue;
+        }
+        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+    }
+    return area > 0 ? flux * (1.0 / area) : Rgb(0.0);
+}
+
+}  // namespace shading

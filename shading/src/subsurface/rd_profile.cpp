@@ -161,20 +161,26 @@ std::shared_ptr<const RdProfile> RdProfile::tabulated(std::vector<double> r, std
     return std::make_shared<const RdProfile>(fn, Fn(), scale, t->r[n - 1]);
 }
 
-Rgb RdProfile::rd(double r) const {
-    if (!(r < r_max_)) return Rgb(0.0);
+RdProfile::Hermite RdProfile::hermite(double r) const {
     std::size_t i;
     double u;
     locate(r, inv_scale_, &i, &u);
-    const Node& a = nodes_[i];
-    const Node& b = nodes_[i + 1];
+    Hermite h;
+    h.a = &nodes_[i];
+    h.b = &nodes_[i + 1];
     const double dr = node_r_[i + 1] - node_r_[i];
     const double u2 = u * u, u3 = u2 * u;
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = (u3 - 2 * u2 + u) * dr, h01 = 3 * u2 - 2 * u3, h11 = (u3 - u2) * dr;
+    h.h00 = 2 * u3 - 3 * u2 + 1, h.h10 = (u3 - 2 * u2 + u) * dr, h.h01 = 3 * u2 - 2 * u3, h.h11 = (u3 - u2) * dr;
+    // the basis's derivative per unit r
+    h.g00 = (6 * u2 - 6 * u) * (1.0 / dr), h.g10 = 3 * u2 - 4 * u + 1, h.g11 = 3 * u2 - 2 * u;
+    return h;
+}
+
+Rgb RdProfile::rd(double r) const {
+    if (!(r < r_max_)) return Rgb(0.0);
+    const Hermite h = hermite(r);
     // Cubic Hermite can dip a hair below 0 where Rd itself is ~0 (the far tail): clamp.
-    return Rgb(std::max(0.0, h00 * a.f[0] + h10 * a.d1[0] + h01 * b.f[0] + h11 * b.d1[0]),
-               std::max(0.0, h00 * a.f[1] + h10 * a.d1[1] + h01 * b.f[1] + h11 * b.d1[1]),
-               std::max(0.0, h00 * a.f[2] + h10 * a.d1[2] + h01 * b.f[2] + h11 * b.d1[2]));
+    return Rgb(std::max(0.0, h.f(0)), std::max(0.0, h.f(1)), std::max(0.0, h.f(2)));
 }
 
 void RdProfile::eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const {
@@ -182,25 +188,26 @@ void RdProfile::eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const {
         *f = *d1 = *d2 = Rgb(0.0);
         return;
     }
-    std::size_t i;
-    double u;
-    locate(r, inv_scale_, &i, &u);
-    const Node& a = nodes_[i];
-    const Node& b = nodes_[i + 1];
-    const double dr = node_r_[i + 1] - node_r_[i], inv_dr = 1.0 / dr;
-    const double u2 = u * u, u3 = u2 * u;
-    // Hermite basis and its derivative (per unit r)
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = (u3 - 2 * u2 + u) * dr, h01 = 3 * u2 - 2 * u3, h11 = (u3 - u2) * dr;
-    const double g00 = (6 * u2 - 6 * u) * inv_dr, g10 = 3 * u2 - 4 * u + 1, g11 = 3 * u2 - 2 * u;
-    *f = Rgb(h00 * a.f[0] + h10 * a.d1[0] + h01 * b.f[0] + h11 * b.d1[0],
-             h00 * a.f[1] + h10 * a.d1[1] + h01 * b.f[1] + h11 * b.d1[1],
-             h00 * a.f[2] + h10 * a.d1[2] + h01 * b.f[2] + h11 * b.d1[2]);
-    *d1 = Rgb(g00 * (a.f[0] - b.f[0]) + g10 * a.d1[0] + g11 * b.d1[0],
-              g00 * (a.f[1] - b.f[1]) + g10 * a.d1[1] + g11 * b.d1[1],
-              g00 * (a.f[2] - b.f[2]) + g10 * a.d1[2] + g11 * b.d1[2]);
-    *d2 = Rgb(h00 * a.d2[0] + h10 * a.d3[0] + h01 * b.d2[0] + h11 * b.d3[0],
-              h00 * a.d2[1] + h10 * a.d3[1] + h01 * b.d2[1] + h11 * b.d3[1],
-              h00 * a.d2[2] + h10 * a.d3[2] + h01 * b.d2[2] + h11 * b.d3[2]);
+    const Hermite h = hermite(r);
+    *f = Rgb(h.f(0), h.f(1), h.f(2));
+    *d1 = Rgb(h.d1(0), h.d1(1), h.d1(2));
+    *d2 = Rgb(h.d2(0), h.d2(1), h.d2(2));
+}
+
+double RdProfile::rd_channel(int c, double r) const {
+    if (!(r < r_max_)) return 0.0;
+    return std::max(0.0, hermite(r).f(c));
+}
+
+void RdProfile::eval_channel(int c, double r, double* f, double* d1, double* d2) const {
+    if (!(r < r_max_)) {
+        *f = *d1 = *d2 = 0.0;
+        return;
+    }
+    const Hermite h = hermite(r);
+    *f = h.f(c);
+    *d1 = h.d1(c);
+    *d2 = h.d2(c);
 }
 
 Rgb RdProfile::disc(double R) const {

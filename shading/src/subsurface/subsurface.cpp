@@ -28,6 +28,8 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     if (!model_) model_ = std::make_shared<const DipoleRadialProfile>(dipole_);
     profile_ = make_rd_profile(model_);
     reach_ = profile_->radius_containing(0.99);
+    // Direction-aware: a profile that knows how far slanted light travels on inside.
+    directional_ = settings_.directional && model_->entry_shift(0.5).max_component() > 0;
     if (settings_.method != SubsurfaceSettings::Method::Profile)
         walk_ = std::make_unique<const RandomWalk>(medium, settings_.walk);
     if (settings_.method == SubsurfaceSettings::Method::RandomWalk)
@@ -137,6 +139,11 @@ std::shared_ptr<const PointCloud> Subsurface::build(const ParallelFor& parallel,
             plan.mean_free_path = mean_free_path();
             plan.thickness = slab_threshold_ > 0;
             plan.reach = reach_;
+            if (directional_)
+                plan.incidence = [this](double cos_i, Rgb* entry, Rgb* shift) {
+                    *entry = model_->entry_factor(cos_i);
+                    *shift = model_->entry_shift(cos_i);
+                };
             points = sample_surface(parallel, plan, &report);
         } else {
             report.unbounded = true;
@@ -169,6 +176,73 @@ std::shared_ptr<const PointCloud> Subsurface::build(const ParallelFor& parallel,
     return cloud;
 }
 
+Rgb Subsurface::single_scatter_upstream(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                                        const Vec3& to_light) const {
+    const double eta = dipole_.medium().eta;
+    // inside tangent of a ray at outside cosine c, and the unit tangential direction its
+    // refracted continuation travels along (away from the side it came from)
+    auto inside = [&](const Vec3& w, double c, Vec3* t) {
+        const Vec3 tan = n * c - w;
+        const double len = length(tan);
+        *t = len > 1e-12 ? tan * (1.0 / len) : Vec3(0, 0, 0);
+        const double s = std::sqrt(std::max(0.0, 1.0 - c * c)) / eta;
+        const double ci = std::sqrt(std::max(1e-12, 1.0 - s * s));
+        return std::pair<double, double>(s / ci, ci);
+    };
+    const double co = std::clamp(dot(n, to_eye), 0.0, 1.0), cl = std::clamp(dot(n, to_light), 0.0, 1.0);
+    Vec3 to, tl;
+    const auto [tan_o, mu_o] = inside(to_eye, co, &to);
+    const auto [tan_l, mu_l] = inside(to_light, cl, &tl);
+    // the view's refracted ray goes down along `to`; the light that meets it at depth z entered
+    // z tan_l back along its own travel
+    const Vec3 D = to * tan_o - tl * tan_l;
+    const Rgb st = dipole_.medium().sigma_t() * dipole_.medium().mm_per_unit;
+    const double dlen = length(D);
+    Rgb ratio(1.0);
+    // mean single-scattering depth's offset per channel: z = 1 / (sigma_t (1/mu_o + 1/mu_l))
+    double L[3], lmin = kInf, lmax = 0;
+    for (int c = 0; c < 3; ++c) {
+        L[c] = st[c] > 0 ? dlen / (st[c] * (1.0 / mu_o + 1.0 / mu_l)) : 0.0;
+        if (L[c] > 0) lmin = std::min(lmin, L[c]), lmax = std::max(lmax, L[c]);
+    }
+    if (!(lmax > 0)) return ratio;
+    // E_t along the upstream line at d_0 = 0 and geometric steps from lmin / 20 to 8 lmax, linear
+    // between them (a shadow edge is a step: the exponential's average of it needs more than a
+    // few nodes), integrated exactly against each channel's exponential e^(-d/L) / L.
+    constexpr int kSteps = 10;
+    double d[kSteps + 1];
+    Rgb e[kSteps + 1];
+    const Vec3 dir = D * (1.0 / dlen);
+    d[0] = 0;
+    e[0] = cloud.irradiance_about(x, cloud.level_spacing(cloud.lookup_level(x)));
+    const double d1 = 0.05 * lmin, q = std::pow(8.0 * lmax / d1, 1.0 / (kSteps - 1));
+    for (int j = 1; j <= kSteps; ++j) {
+        d[j] = d1 * std::pow(q, j - 1);
+        const Vec3 y = x + dir * d[j];
+        e[j] = cloud.irradiance_about(y, cloud.level_spacing(cloud.lookup_level(y)));
+    }
+    for (int c = 0; c < 3; ++c) {
+        if (!(e[0][c] > 0) || !(L[c] > 0)) continue;
+        // integral of e^(-d/L)/L times the linear interpolant on [d_j, d_j+1], the last value
+        // held beyond d_K
+        double avg = 0;
+        for (int j = 0; j < kSteps; ++j) {
+            const double a = d[j] / L[c], b = d[j + 1] / L[c], ea = std::exp(-a), eb = std::exp(-b);
+            const double w = b - a;
+            // integral over [a, b] of e^-t (f0 (b - t) + f1 (t - a)) / w dt
+            const double i0 = ea - eb;                                   // integral e^-t
+            const double i1 = (a + 1) * ea - (b + 1) * eb;               // integral t e^-t
+            avg += (e[j][c] * (b * i0 - i1) + e[j + 1][c] * (i1 - a * i0)) / w;
+        }
+        avg += e[kSteps][c] * std::exp(-d[kSteps] / L[c]);
+        // the part of the light upstream that is there: a shadow's visibility, never above 1
+        // (where E_t rises upstream, as toward a lit face's centre, the BRDF at x already has
+        // its own light; near a terminator E_t about x is ~0 and the ratio means nothing)
+        ratio[c] = std::min(1.0, avg / e[0][c]);
+    }
+    return ratio;
+}
+
 const SlabProfiles& Subsurface::slab(double d) const {
     if (!slabs_) throw std::logic_error("Subsurface::slab: thin geometry is off");
     return slabs_->node(d).p;
@@ -178,9 +252,20 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
                          const Rgb& irradiance_here) const {
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
+    std::size_t visited = 0;
+    if (cloud.directional()) {
+        // Light that entered at a slant leaves about its shifted entries: the near field is lit
+        // by the irradiance upstream of x (PointCloud::far_exitance_shifted), not x's own.
+        const int level = cloud.lookup_level_shifted(x);
+        const double h = cloud.level_spacing(level), r0 = near_radius(h);
+        Rgb upstream;
+        Rgb m = cloud.far_exitance_shifted(*profile_, x, n, r0, h, settings_.max_angle, cutoff(), &upstream, &visited);
+        count_lookup(visited, false);
+        m += upstream * cloud.level_near(level);
+        return m * model_->exit_factor(cos_o);
+    }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
-    std::size_t visited = 0;
     Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited);
     count_lookup(visited, false);
     m += irradiance_here * cloud.level_near(level);

@@ -81,6 +81,7 @@ struct Sample {
     Rgb irradiance;
     double e = 0;  // E_t summed over the channels
     double thickness = std::numeric_limits<double>::infinity();
+    Vec3 shift[3];
     std::uint8_t level = 0;
     bool active = true;
 };
@@ -110,6 +111,8 @@ private:
     void add_sample(int line, int layer);
     void light(std::size_t first);
     bool thickness_ = false;  // ask for each sample's thickness (SamplingPlan::thickness)
+    const SamplingPlan* plan_ = nullptr;
+    void shift_of(SurfaceSampler& s, const SurfaceSampler::Hit& at, Sample& S) const;
     bool neighbour(const Sample& s, int di, int dj, double* e) const;
 
     const ParallelFor& parallel_;
@@ -209,8 +212,38 @@ void Sampling::light(std::size_t first) {
         S.irradiance = s.irradiance(at.p, at.n);
         S.e = S.irradiance.r + S.irradiance.g + S.irradiance.b;
         if (thickness_) S.thickness = s.thickness(at.p, at.n);
+        if (plan_->incidence && S.e > 0) shift_of(s, at, S);
     });
     for (std::size_t k = first; k < samples_.size(); ++k) e_max_ = std::max(e_max_, samples_[k].e);
+}
+
+// The sample's exit shift per channel: over the lights that reach it, the mean of the profile's
+// entry shift along each refracted beam's tangential direction, weighted by the flux each
+// brings (entry factor x cos x colour after shadows; with one light the colour cancels and no
+// shadow ray is cast: the sample is lit, so that light reaches it).
+void Sampling::shift_of(SurfaceSampler& s, const SurfaceSampler::Hit& at, Sample& S) const {
+    const int lights = s.light_count();
+    Vec3 acc[3];
+    Rgb wsum(0.0);
+    for (int i = 0; i < lights; ++i) {
+        Vec3 l;
+        if (!s.light_direction(i, at.p, &l)) continue;
+        const double cos_i = dot(l, at.n);
+        if (!(cos_i > 0)) continue;
+        const Vec3 tangent = at.n * cos_i - l;  // the beam's travel along the surface
+        const double len = length(tangent);
+        Rgb entry, shift;
+        plan_->incidence(std::min(cos_i, 1.0), &entry, &shift);
+        const Rgb colour = lights == 1 ? Rgb(1.0) : s.light_colour(i, at.p, at.n, l);
+        const Vec3 dir = len > 1e-12 ? tangent * (1.0 / len) : Vec3(0, 0, 0);
+        for (int c = 0; c < 3; ++c) {
+            const double w = entry[c] * cos_i * colour[c];
+            if (!(w > 0)) continue;
+            wsum[c] += w;
+            acc[c] = acc[c] + dir * (w * shift[c]);
+        }
+    }
+    for (int c = 0; c < 3; ++c) S.shift[c] = wsum[c] > 0 ? acc[c] * (1.0 / wsum[c]) : Vec3(0, 0, 0);
 }
 
 // E_t summed over channels at the crossing of the neighbouring line (di, dj) of s's own level
@@ -243,6 +276,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
     const std::size_t max_points = plan.max_points;
     report->view_limited = plan.view.kind != ViewVolume::Kind::Everywhere;
     thickness_ = plan.thickness;
+    plan_ = &plan;
     // Level 0: three families of lines at spacing h0 across the box. The base spacing (after
     // the view levels) would need `dense` lines over the whole box: too many for any view.
     double total = 0, dense = 0;
@@ -475,6 +509,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
             pt.irradiance = s.irradiance;
             pt.spacing = spacing(s.level);
             pt.thickness = s.thickness;
+            for (int c = 0; c < 3; ++c) pt.shift[c] = s.shift[c];
             report->thinnest = std::min(report->thinnest, s.thickness);
             out.push_back(pt);
         }

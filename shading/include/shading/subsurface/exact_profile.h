@@ -34,6 +34,7 @@ public:
     double mean_free_path() const override;
     Rgb exit_factor(double cos_o) const override;
     Rgb entry_factor(double cos_i) const override;
+    Rgb entry_shift(double cos_i) const override;
     bool includes_single_scattering() const override { return false; }
     std::string describe() const override { return "exact"; }
     // Thin geometry: the tables' slabs where they cover a channel (make_exact_slab_profiles),

@@ -31,6 +31,11 @@ struct SurfacePoint {
     // Distance along -n to the object's next surface crossing (SurfaceSampler::thickness;
     // infinity: none, or not asked for).
     double thickness = std::numeric_limits<double>::infinity();
+    // Direction-aware profiles: per channel, the mean offset (scene units) of the light that
+    // enters here from where it leaves the surface again: the flux-weighted mean over the lights
+    // of the profile's entry shift along each refracted beam's tangential direction (zero: the
+    // profile is radially symmetric about p, as under light straight on).
+    Vec3 shift[3] = {};
 };
 
 struct CloudStats {
@@ -93,6 +98,32 @@ public:
     // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
     Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                  double d, double r0, double h, const Rgb& near_opposite) const;
+
+    // Direction-aware profiles (SurfacePoint::shift; shading/DIPOLE.md 6b). Whether any point
+    // carries a shift (then the lookups below replace far_exitance and x's own irradiance).
+    bool directional() const { return !node_shift_.empty(); }
+    // The exitance of light that entered at a slant: each point's light leaves about its own
+    // shifted entry, spread along the shift as an exponential distribution of offsets with the
+    // shift as its mean (three Gauss-Laguerre nodes t_k: images at p + t_k shift, weights w_k),
+    // per channel. The window is taken about each image, so `near_irradiance` returns, per
+    // channel, the sum over k of w_k times the (1 - w)-weighted mean E_t of the points whose
+    // k-th image lies inside it: the irradiance upstream of x, for the near field
+    // (level_near x near_irradiance). Aggregates place each channel's flux at the node's centre
+    // plus its flux-weighted mean shift. Otherwise as far_exitance.
+    Rgb far_exitance_shifted(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
+                             double cutoff, Rgb* near_irradiance, std::size_t* visited = nullptr) const;
+    // The same without aggregation or cutoff, with the profile's exact callable: the reference.
+    Rgb far_exitance_shifted_exact(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h,
+                                   Rgb* near_irradiance) const;
+    // The lookup level for far_exitance_shifted: the coarsest of x's own and of the points
+    // upstream of x (x less the first two images' offsets of its nearest point's shifts).
+    int lookup_level_shifted(const Vec3& x) const;
+    // The transmitted irradiance about a point y near the surface: the (1 - w)-weighted mean E_t
+    // of the points inside the window of spacing h about y (0 where none is).
+    Rgb irradiance_about(const Vec3& y, double h) const;
+    static constexpr int kSmearNodes = 3;
+    static const double kSmearT[kSmearNodes];
+    static const double kSmearW[kSmearNodes];
 
     // The near/far window (rd_profile.h far_window).
     static double window(double r, double r0, double h) { return far_window(r, r0, h); }
@@ -176,6 +207,22 @@ private:
     std::vector<Agg> aggs_;
     std::vector<Aux> aux_;
     std::vector<Cone> cones_;             // read only by far_exitance_sided
+    // Directional clouds only (else empty): per point its shifts; per node the flux-weighted
+    // mean shift per channel and the largest image offset of its points (t_max |shift|).
+    struct NodeShift {
+        Vec3 mean[3];
+        double reach = 0;   // t_max x the largest |shift|: every image within it of the box
+        double spread = 0;  // the largest |shift|: the images' spread about the shifted points
+    };
+    struct LeafShift {
+        Vec3 s[3];
+    };
+    std::vector<LeafShift> leaf_shift_;
+    std::vector<NodeShift> node_shift_;
+    void build_shifts();
+    template <bool kExact>
+    Rgb shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
+                    double cut2, Rgb* near_irradiance, std::size_t* visited) const;
     double thinnest_ = std::numeric_limits<double>::infinity();
 };
 

@@ -39,6 +39,14 @@ public:
     // Irradiance transmitted into the profile per unit irradiance arriving at outside cosine cos_i:
     // Ft(cos_i) for the dipole; Ft(cos_i) times the transport's incidence factor for the exact profile.
     virtual Rgb entry_factor(double cos_i) const = 0;
+    // Light entering at a slant travels on inside: the mean offset (scene units, per channel)
+    // of its multiple-scattering exitance from the entry point, along the refracted beam's
+    // tangential direction, for light arriving at outside cosine cos_i. 0: a profile that does
+    // not know (the dipole), and at normal incidence.
+    virtual Rgb entry_shift(double cos_i) const {
+        (void)cos_i;
+        return Rgb(0.0);
+    }
     // Whether rd already stands for single scattering too (the dipole): then the finish does not
     // add the single-scattering BRDF by default.
     virtual bool includes_single_scattering() const = 0;

@@ -47,6 +47,8 @@ public:
 
     Rgb rd(double r) const;                           // the table (fast)
     void eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const;  // Rd and d/dr, d2/dr2 (table)
+    double rd_channel(int c, double r) const;         // one channel of rd(r)
+    void eval_channel(int c, double r, double* f, double* d1, double* d2) const;  // one channel of eval
     Rgb exact(double r) const { return rd_(r); }      // the callable itself
     Rgb disc(double R) const;                         // integral over a disc of radius R
     Rgb total() const { return total_; }              // disc(r_max)
@@ -74,6 +76,16 @@ private:
     struct Node {
         double f[3], d1[3], d2[3], d3[3];
     };
+    // The cubic Hermite basis at r < r_max: its interval's nodes, the weights of their values
+    // and slopes (h), and those weights' derivatives per unit r (g).
+    struct Hermite {
+        const Node *a, *b;
+        double h00, h10, h01, h11, g00, g10, g11;
+        double f(int c) const { return h00 * a->f[c] + h10 * a->d1[c] + h01 * b->f[c] + h11 * b->d1[c]; }
+        double d1(int c) const { return g00 * (a->f[c] - b->f[c]) + g10 * a->d1[c] + g11 * b->d1[c]; }
+        double d2(int c) const { return h00 * a->d2[c] + h10 * a->d3[c] + h01 * b->d2[c] + h11 * b->d3[c]; }
+    };
+    Hermite hermite(double r) const;
     Fn rd_, disc_;
     double scale_ = 1, inv_scale_ = 1, r_max_ = 1;
     Rgb total_;

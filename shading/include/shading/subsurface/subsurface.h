@@ -75,6 +75,11 @@ struct SubsurfaceSettings {
     // Thin geometry: each sample's thickness (SurfaceSampler::thickness) and, where an object
     // is thinner than slab_threshold(), slab profiles (slab.h) instead of the half-space's.
     bool thin = true;
+    // Direction-aware profiles (RadialProfile::entry_shift; the exact profile's): light entering
+    // at a slant leaves about an entry shifted along its refracted beam, and single scattering
+    // is lit from upstream (shading/DIPOLE.md 6b). Off by default: at creases and concave seams
+    // the result still depends on the sampling (6b).
+    bool directional = false;
     // `method profile` (the above) or `method random_walk`: exact transport inside the
     // object's own surface (random_walk.h), no cloud, no profile, no single-scattering BRDF.
     // `method auto`: per object, the walk where its smallest bounding-box extent is below
@@ -109,6 +114,17 @@ public:
     const SubsurfaceSettings& settings() const { return settings_; }
     // The walk of `method random_walk` and `method auto` (null for profiles).
     const RandomWalk* walk() const { return walk_.get(); }
+    // Whether lookups use the profile's entry shifts (settings.directional and a profile with
+    // them: shading/DIPOLE.md 6b).
+    bool directional() const { return directional_; }
+    // Single scattering next to a change of light (a shadow edge): the light that scatters once
+    // under x toward to_eye entered upstream, at x + t z D (D the tangential offset per unit
+    // depth of the refracted view and light rays, z the mean single-scattering depth per
+    // channel, t exponential): the cloud's transmitted irradiance there over its irradiance
+    // about x, per channel, at most 1 (1 where the cloud has none about x). Multiplies the
+    // half-space's single-scattering BRDF.
+    Rgb single_scatter_upstream(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                                const Vec3& to_light) const;
     // `method auto`: whether the object `key` (smallest bounding-box extent `extent`, scene
     // units; infinity: unbounded) is walked; each object is counted once in the statistics.
     bool auto_walks(const void* key, double extent) const;
@@ -167,6 +183,7 @@ private:
     std::shared_ptr<const RdProfile> profile_;
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
+    bool directional_ = false;  // the profile has entry shifts and settings.directional is on
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
     mutable std::mutex auto_mutex_;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -55,6 +56,23 @@ public:
         (void)n;
         return std::numeric_limits<double>::infinity();
     }
+    // The lights that reach the object, for a direction-aware profile (SamplingPlan::incidence):
+    // how many; the unit direction from p toward light i (false: none); light i's colour
+    // arriving at p (outward normal n) from to_light, after shadows. Default: none known.
+    virtual int light_count() { return 0; }
+    virtual bool light_direction(int i, const Vec3& p, Vec3* to_light) {
+        (void)i;
+        (void)p;
+        (void)to_light;
+        return false;
+    }
+    virtual Rgb light_colour(int i, const Vec3& p, const Vec3& n, const Vec3& to_light) {
+        (void)i;
+        (void)p;
+        (void)n;
+        (void)to_light;
+        return Rgb(0.0);
+    }
 };
 
 // What building one cloud found (for the statistics).
@@ -83,6 +101,10 @@ struct SamplingPlan {
     bool thickness = false;     // ask the sampler for each sample's thickness
     ViewVolume view;
     double reach = 0;     // the profile's radius holding 99 % of Rd
+    // A direction-aware profile (RadialProfile::entry_shift): for light arriving at outside
+    // cosine cos_i, the entry factor and the exit shift per channel (scene units). Set: each lit
+    // sample gets SurfacePoint::shift from the lights that reach it; empty: no shifts.
+    std::function<void(double cos_i, Rgb* entry, Rgb* shift)> incidence;
 };
 
 // Samples an object for a subsurface finish (subsurface_sampling.cpp; shading/DIPOLE.md 6):
