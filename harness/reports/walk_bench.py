@@ -1,5 +1,6 @@
-"""Subsurface in real geometry (issue 31): the dipole finish's profile method and its random walk,
-both rendered by the fork at default settings, against the independent volumetric reference
+"""Subsurface in real geometry (issue 31): the dipole finish's profile method (at default settings
+and with ``directional on``, shading/DIPOLE.md 6b; not on sheets, where it shifts nothing) and
+its random walk, rendered by the fork, against the independent volumetric reference
 (:mod:`harness.reference.volume_ref`, a numpy photon tracer sharing no code with the library),
 with the reference's own noise, the render times and each method's error.
 
@@ -115,7 +116,8 @@ def edge_rows(args, fork) -> list[dict]:
                     plateau = ref.plateau
                     row = dict(scene="edge", medium=name, eta=eta, g=g, angle=angle, ref_seconds=ref_s,
                                ref_noise=float((ref.plateau_err / plateau).max()))
-                    for method, extra in (("profile", ""), ("walk", f" method random_walk samples {args.samples}")):
+                    for method, extra in (("profile", ""), ("directional", " directional on"),
+                                          ("walk", f" method random_walk samples {args.samples}")):
                         text = EDGE.format(width=nx * step, height=ny * step, light=vec(to_light), edge=plate_edge(t),
                                            dipole=medium_text(name, g, eta) + extra)
                         img, sec = render(text, nx, ny, fork)
@@ -218,7 +220,8 @@ def sphere_rows(args, fork) -> list[dict]:
         yy, xx = np.meshgrid(-c, c, indexing="ij")
         half = span / n / 2
         inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
-        for method, extra in (("profile", ""), ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
+        for method, extra in (("profile", ""), ("directional", " directional on"),
+                              ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
             text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
                                    dipole=medium_text(name, g, eta) + extra)
             img, sec = render(text, n * over, n * over, fork)
@@ -246,9 +249,10 @@ def report(row: dict) -> None:
     head = f"{row['scene']:6s} {row['medium']:8s} eta {row['eta']:.1f} g {row['g']:.1f}"
     if row["scene"] == "edge":
         head += f" light {row['angle']:2d}"
-        p, w = row["profile"], row["walk"]
+        p, d, w = row["profile"], row["directional"], row["walk"]
         body = (f"| profile max {100 * p['max_diff']:6.2f} % plateau {100 * p['plateau']:5.2f} % edge {p['edge']} "
-                f"{p['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
+                f"{p['seconds']:6.2f} s | directional on max {100 * d['max_diff']:6.2f} % plateau "
+                f"{100 * d['plateau']:5.2f} % edge {d['edge']} {d['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
                 f"edge {w['edge']} {w['seconds']:6.2f} s (its noise {100 * w['noise']:.1f} %, per walk {w['per_walk']:.1f}, "
                 f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s) | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
@@ -258,9 +262,10 @@ def report(row: dict) -> None:
                 f"{w['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
     else:
         head += f" R {row['lengths']:4.1f} ld"
-        p, w = row["profile"], row["walk"]
+        p, d, w = row["profile"], row["directional"], row["walk"]
         pct = lambda v: "   n/a" if v is None else f"{100 * v:6.2f}"
-        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | walk flux "
+        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | directional on "
+                f"flux {100 * d['flux']:6.2f} % rms {pct(d['rms'])} % {d['seconds']:6.2f} s | walk flux "
                 f"{100 * w['flux']:6.2f} % rms {pct(w['rms'])} % {w['seconds']:6.2f} s | ref noise "
                 f"{100 * row['ref_noise']:.2f} % (flux), {pct(row['ref_pixel_noise'])} % (pixel rms)")
     print(head, body, flush=True)
