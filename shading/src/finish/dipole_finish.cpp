@@ -191,12 +191,6 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
         settings.method = SubsurfaceSettings::Method::Auto;
         settings.auto_single_scatter = settings.single_scatter;
         settings.single_scatter = false;
-    } else if (p.method == DipoleParams::Method::Profile && exact && settings.directional &&
-               exact->entry_shift(0.5).max_component() > 0) {
-        // direction-aware profiles: single scattering at each lookup too, lit by the light
-        // upstream of the point (shading/DIPOLE.md 6b)
-        settings.auto_single_scatter = settings.single_scatter;
-        settings.single_scatter = false;
     }
     auto subsurface = std::make_shared<const Subsurface>(medium, settings, FdrModel::JensenFit, profile);
     std::shared_ptr<FinishModel> model = finish_model_with_subsurface(coat, subsurface);

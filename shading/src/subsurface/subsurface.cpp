@@ -30,6 +30,12 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     reach_ = profile_->radius_containing(0.99);
     // Direction-aware: a profile that knows how far slanted light travels on inside.
     directional_ = settings_.directional && model_->entry_shift(0.5).max_component() > 0;
+    // ... and then single scattering at each lookup, lit from upstream (single_scatter_upstream),
+    // not by the light loop's BRDF
+    if (directional_ && settings_.method == SubsurfaceSettings::Method::Profile) {
+        settings_.auto_single_scatter = settings_.single_scatter;
+        settings_.single_scatter = false;
+    }
     if (settings_.method != SubsurfaceSettings::Method::Profile)
         walk_ = std::make_unique<const RandomWalk>(medium, settings_.walk);
     if (settings_.method == SubsurfaceSettings::Method::RandomWalk)
@@ -185,9 +191,8 @@ Rgb Subsurface::single_scatter_upstream(const PointCloud& cloud, const Vec3& x, 
         const Vec3 tan = n * c - w;
         const double len = length(tan);
         *t = len > 1e-12 ? tan * (1.0 / len) : Vec3(0, 0, 0);
-        const double s = std::sqrt(std::max(0.0, 1.0 - c * c)) / eta;
-        const double ci = std::sqrt(std::max(1e-12, 1.0 - s * s));
-        return std::pair<double, double>(s / ci, ci);
+        const double ci = std::max(1e-6, refracted_cos(c, eta));
+        return std::pair<double, double>(std::sqrt(std::max(0.0, 1.0 - ci * ci)) / ci, ci);
     };
     const double co = std::clamp(dot(n, to_eye), 0.0, 1.0), cl = std::clamp(dot(n, to_light), 0.0, 1.0);
     Vec3 to, tl;

@@ -77,8 +77,9 @@ struct SubsurfaceSettings {
     bool thin = true;
     // Direction-aware profiles (RadialProfile::entry_shift; the exact profile's): light entering
     // at a slant leaves about an entry shifted along its refracted beam, and single scattering
-    // is lit from upstream (shading/DIPOLE.md 6b). Off by default: at creases and concave seams
-    // the result still depends on the sampling (6b).
+    // is lit from upstream (shading/DIPOLE.md 6b): the constructor then moves single_scatter to
+    // auto_single_scatter (at each lookup, not in the BRDF), as the finish does for `auto`.
+    // Off by default: at creases and concave seams the result still depends on the sampling.
     bool directional = false;
     // `method profile` (the above) or `method random_walk`: exact transport inside the
     // object's own surface (random_walk.h), no cloud, no profile, no single-scattering BRDF.
