@@ -106,3 +106,57 @@ def test_samples_with_area_lights_warn_about_the_cost(fork, area, samples, warne
     assert ("samples" in text and "area light" in text) == warned, res.warnings
     if warned:
         assert "8 glossy rays" in text and "20 shadow rays" in text and "160" in text, text
+
+
+#: A measured table's glossy noise against its channel floor (table_albedo.channel_floor: the
+#: least spread rays shared by the channels can have where the channels' noise differs):
+#: stated before measuring, at most 1.6 x the floor for 16 independent rays.
+MERL_FLOOR_RATIO = 1.6
+#: ... and at m = 0.02 that floor is at least the model's own noise (at least 1.0): why issue
+#: 32's "at or below the model" cannot hold for a MERL table with 2 % noise per bin.
+MERL_FLOOR_OVER_MODEL = 1.0
+
+
+def test_a_noisy_merl_table_is_sampled_near_its_channel_floor(fork):
+    """The MERL form of glossy_noise (Beckmann m = 0.02, 2 % noise per bin and channel, converted
+    to a half/difference table on MERL's grid), 16 rays at 48 x 48. Measured: rms 0.30 %, floor
+    0.22 % (ratio 1.37), model 0.175 % (floor / model 1.24)."""
+    spec = glossy_noise.spec_for(0.02)
+    merl = glossy_noise.measure("merl", 16, size=48, spec=spec)
+    model = glossy_noise.measure("model", 16, size=48, spec=spec)
+    floor = glossy_noise.floor("merl", 16, spec)
+    print(f"merl rms {100 * merl.rms:.3f} %, floor {100 * floor:.3f} %, model {100 * model.rms:.3f} %")
+    assert merl.pixels > 1000
+    assert merl.rms <= MERL_FLOOR_RATIO * floor
+    assert floor >= MERL_FLOOR_OVER_MODEL * model.rms
+
+
+def _cells_variance(h: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Each channel's relative variance of f / pdf when cell k is drawn with probability p[k]
+    and channel c's integrand has mass h[k, c] (summing to 1): sum h^2 / p - 1, written out."""
+    return np.array([sum(h[k, c] ** 2 / p[k] for k in range(len(p)) if p[k] > 0) - 1.0 for c in range(h.shape[1])])
+
+
+def test_channel_floor_is_the_least_spread_of_any_shared_density():
+    """table_albedo.shared_floor against the variance written out: two cells, channel masses
+    (1, 1) and (1, 3) give P = (sqrt(5/16), sqrt(13/16)) normalised and spreads 0.2412, 0.2732
+    (by hand); no other density has a smaller sum of variances (2000 random ones); channels of
+    one shape give 0."""
+    from harness.reference.table_albedo import shared_floor
+
+    g = np.array([[1.0, 1.0], [1.0, 3.0]])
+    spread, p = shared_floor(g)
+    want_p = np.array([np.sqrt(5 / 16), np.sqrt(13 / 16)])
+    want_p /= want_p.sum()
+    assert np.allclose(p, want_p, rtol=1e-12)
+    assert np.allclose(spread, [0.2412, 0.2732], atol=1e-4)
+    h = g / g.sum(axis=0)
+    assert np.allclose(spread ** 2, _cells_variance(h, want_p), rtol=1e-12)
+    rng = np.random.default_rng(7)
+    g = rng.uniform(0.1, 1.0, (12, 3))
+    h = g / g.sum(axis=0)
+    best = (shared_floor(g)[0] ** 2).sum()
+    for _ in range(2000):
+        q = rng.dirichlet(np.ones(12))
+        assert _cells_variance(h, q).sum() >= best - 1e-12
+    assert np.all(shared_floor(np.outer(rng.uniform(0.1, 1.0, 12), [1.0, 2.0, 5.0]))[0] < 1e-7)

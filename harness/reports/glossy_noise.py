@@ -27,6 +27,16 @@ cos theta_o (``BANDS``; the worst band is printed). Issue 32 measured, before th
 sampler, at m = 0.1: model 0.77 % / 0.27 % at 16 / 64 samples, 1 deg table 1.64 % / 0.80 %,
 half/difference 1.82 % / 0.88 %; the half/difference table +0.18...+0.22 % at cos theta_o 0.15-0.3.
 
+The *floor* column (noisy forms): a table whose channels carry independent measurement noise
+has channels of different shapes, and one ray serves all three, so some spread stays whatever
+the sampler: :func:`harness.reference.table_albedo.channel_floor` gives the least per-sample
+spread of the green channel over every density (0.86-0.92 % per sample for 2 % noise, at any
+roughness), printed per pixel for independent rays (over sqrt(samples)). The stratified rays go
+below it only where a stratum holds few table cells (the 1 deg measurement of a narrow lobe);
+a MERL table's narrow lobe covers hundreds of its bins, so at m = 0.02 its floor (0.22 % / 0.11 %
+at 16 / 64 rays) is above the model's own noise (0.17 % / 0.06 %) and no sampler of that table
+can match the model there.
+
     python -m harness.reports.glossy_noise [--size 96] [--samples 16,64] [--m 0.02,0.05,0.1,0.3,0.5]
     python -m harness.reports.glossy_noise --bias [--size 128] [--samples 256]
 
@@ -50,7 +60,7 @@ from harness.core import brdf_io, runner, tables
 from harness.core.paths import brdftool
 from harness.core.scenes import SphereScene
 from harness.reference.expect import surface_samples
-from harness.reference.table_albedo import halfdiff_albedo, table_albedo
+from harness.reference.table_albedo import channel_floor, halfdiff_albedo, table_albedo
 
 SPEC = "microfacet d=beckmann m=0.3"
 FURNACE = """#version 3.7;
@@ -140,6 +150,31 @@ def expectation(kind: str, step: float = 1.0, spec: str = SPEC) -> np.ndarray:
     return np.array(rows)[:, 2]
 
 
+#: Viewing angles (deg) at which :func:`floor` evaluates the channels' floor (their mean is used).
+FLOOR_THETA = (20.0, 50.0)
+#: Forms whose channels carry independent noise (the others have one shape: floor 0).
+NOISY = ("measured", "merl")
+
+
+@lru_cache(maxsize=None)
+def floor_per_sample(kind: str, spec: str = SPEC) -> float:
+    """The green channel's per-sample spread that the best sampler drawing one direction for all
+    channels leaves (:func:`harness.reference.table_albedo.channel_floor`), mean over
+    :data:`FLOOR_THETA`: the measurement noise that differs between the channels, which no such
+    sampler removes. 0 for forms whose channels share one shape."""
+    if kind not in NOISY:
+        return 0.0
+    path = measured_path(spec) if kind == "measured" else merl_path(spec)
+    f, _ = brdf_io.read_brdf(path, verify=False)
+    return float(channel_floor(f, np.array(FLOOR_THETA), halfdiff=kind == "merl")[:, 1].mean())
+
+
+def floor(kind: str, samples: int, spec: str = SPEC) -> float:
+    """:func:`floor_per_sample` for a pixel of ``samples`` independent rays (over sqrt(samples));
+    stratified rays fall below it only where a stratum holds few of the table's cells."""
+    return floor_per_sample(kind, spec) / np.sqrt(samples)
+
+
 @dataclass
 class Noise:
     kind: str
@@ -182,8 +217,8 @@ def measure(kind: str, samples: int, size: int = 96, step: float = 1.0, spec: st
 
 
 def format_table(rows: Sequence[Noise]) -> str:
-    lines = [f"{'finish':<9} {'m':>5} {'samples':>7} {'rms rel':>9} {'/ model':>8} {'mean rel':>9} "
-             f"{'worst band':>10} {'pixels':>7} {'trace s':>8}", "-" * 84]
+    lines = [f"{'finish':<9} {'m':>5} {'samples':>7} {'rms rel':>9} {'/ model':>8} {'floor':>7} {'mean rel':>9} "
+             f"{'worst band':>10} {'pixels':>7} {'trace s':>8}", "-" * 92]
     model = {(r.spec, r.samples): r.rms for r in rows if r.kind == "model"}
     for r in rows:
         t = f"{r.trace_s:8.2f}" if r.trace_s is not None else "       -"
@@ -191,8 +226,11 @@ def format_table(rows: Sequence[Noise]) -> str:
         rt = f"{r.rms / ratio:8.2f}" if ratio else "       -"
         m = r.spec.split("m=")[-1].split()[0] if "m=" in r.spec else "-"
         wb = f"{100 * r.worst_band:+9.3f}%" if r.band_bias else "         -"
-        lines.append(f"{r.kind:<9} {m:>5} {r.samples:>7d} {100 * r.rms:8.2f}% {rt} {100 * r.mean:+8.3f}% {wb} "
+        fl = f"{100 * floor(r.kind, r.samples, r.spec):6.2f}%" if r.kind in NOISY else "      -"
+        lines.append(f"{r.kind:<9} {m:>5} {r.samples:>7d} {100 * r.rms:8.2f}% {rt} {fl} {100 * r.mean:+8.3f}% {wb} "
                      f"{r.pixels:>7d} {t}")
+    lines.append("floor: the least rms that rays shared by the three channels can have where the channels' "
+                 "noise differs (independent rays; table_albedo.channel_floor)")
     return "\n".join(lines)
 
 
