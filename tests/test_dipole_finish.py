@@ -123,6 +123,9 @@ plane { y, 0 finish { ambient 0 dipole { "Marble" } } }
     ('"Marble" refine_levels -1', "refine_levels must be a whole number from 0 to 12"),
     ('"Marble" refine_levels 2.5', "refine_levels must be a whole number from 0 to 12"),
     ('"Marble" refine_levels 13', "refine_levels must be a whole number from 0 to 12"),
+    ('"Marble" single_scatter_samples -1', "single_scatter_samples must be a whole number of depths from 0"),
+    ('"Marble" single_scatter_samples 2.5', "single_scatter_samples must be a whole number of depths from 0"),
+    ('"Marble" single_scatter_samples 257', "16 to 32 suit most scenes"),
 ])
 def test_bad_dipole_values_are_scene_errors(fork, body, message):
     text = f"""#version 3.7;

@@ -1,6 +1,7 @@
-"""Subsurface in real geometry (issue 31): the dipole finish's profile method (at default settings
-and with ``directional on``, shading/DIPOLE.md 6b; not on sheets, where it shifts nothing) and
-its random walk, rendered by the fork, against the independent volumetric reference
+"""Subsurface in real geometry (issue 31): the dipole finish's profile method (at default settings,
+with ``directional on``, shading/DIPOLE.md 6b, not on sheets, where it shifts nothing, and with
+single scattering traced in the object, ``single_scatter_samples`` :data:`TRACED`, not on the
+edge, a flat face where it is the formula) and its random walk, rendered by the fork, against the independent volumetric reference
 (:mod:`harness.reference.volume_ref`, a numpy photon tracer sharing no code with the library),
 with the reference's own noise, the render times and each method's error.
 
@@ -148,6 +149,11 @@ box {{ <-120, -120, {bottom}>, <120, 120, 0> texture {{ pigment {{ rgb 1 }} fini
 """
 
 
+#: Depths per channel of the "traced single" column (`single_scatter_samples`: single scattering
+#: traced inside the object's own shape, the profile's multiple scattering unchanged).
+TRACED = 16
+
+
 def sheet_rows(args, fork) -> list[dict]:
     rows = []
     for name in args.media:
@@ -176,7 +182,8 @@ def sheet_rows(args, fork) -> list[dict]:
                                    side="reflected" if side > 0 else "transmitted", view=angle,
                                    ref=want.tolist(), ref_seconds=ref_s / len(views),
                                    ref_noise=float(np.max(want_err / np.maximum(want, 1e-30))))
-                        for method, extra in (("profile", ""), ("walk", f" method random_walk samples {args.samples}")):
+                        for method, extra in (("profile", ""), ("traced", f" single_scatter_samples {TRACED}"),
+                                              ("walk", f" method random_walk samples {args.samples}")):
                             img, sec = render(SHEET.format(bottom=-d, dipole=medium_text(name, g, eta) + extra, **cam),
                                               8, 8, fork)
                             got = img.reshape(-1, 3).mean(0)
@@ -221,6 +228,7 @@ def sphere_rows(args, fork) -> list[dict]:
         half = span / n / 2
         inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
         for method, extra in (("profile", ""), ("directional", " directional on"),
+                              ("traced", f" single_scatter_samples {TRACED}"),
                               ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
             text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
                                    dipole=medium_text(name, g, eta) + extra)
@@ -257,15 +265,17 @@ def report(row: dict) -> None:
                 f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s) | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
         head += f" d {row['mfp']:5.2f} mfp {row['side']:11s} view {row['view']:2d}"
-        p, w = row["profile"], row["walk"]
-        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
+        p, t, w = row["profile"], row["traced"], row["walk"]
+        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | traced single {100 * t['error']:7.2f} % "
+                f"{t['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
                 f"{w['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
     else:
         head += f" R {row['lengths']:4.1f} ld"
-        p, d, w = row["profile"], row["directional"], row["walk"]
+        p, d, t, w = row["profile"], row["directional"], row["traced"], row["walk"]
         pct = lambda v: "   n/a" if v is None else f"{100 * v:6.2f}"
         body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | directional on "
-                f"flux {100 * d['flux']:6.2f} % rms {pct(d['rms'])} % {d['seconds']:6.2f} s | walk flux "
+                f"flux {100 * d['flux']:6.2f} % rms {pct(d['rms'])} % {d['seconds']:6.2f} s | traced single flux "
+                f"{100 * t['flux']:6.2f} % rms {pct(t['rms'])} % {t['seconds']:6.2f} s | walk flux "
                 f"{100 * w['flux']:6.2f} % rms {pct(w['rms'])} % {w['seconds']:6.2f} s | ref noise "
                 f"{100 * row['ref_noise']:.2f} % (flux), {pct(row['ref_pixel_noise'])} % (pixel rms)")
     print(head, body, flush=True)

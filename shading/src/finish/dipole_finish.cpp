@@ -168,6 +168,7 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (p.thin_geometry) settings.thin = *p.thin_geometry;
     if (p.directional) settings.directional = *p.directional;
     if (p.samples) settings.walk.samples = *p.samples;
+    if (p.single_scatter_samples) settings.single_scatter_points = *p.single_scatter_samples;
     if (p.method == DipoleParams::Method::RandomWalk) {
         // exact transport: nothing tabulated, single scattering is part of the walk
         settings.method = SubsurfaceSettings::Method::RandomWalk;
@@ -205,7 +206,8 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     const Subsurface& subsurface = *model.subsurface;
     const SubsurfaceSettings& settings = subsurface.settings();
     const bool automatic = settings.method == SubsurfaceSettings::Method::Auto;
-    if (const RandomWalk* walk = subsurface.walk()) {
+    const RandomWalk* walk = settings.method != SubsurfaceSettings::Method::Profile ? subsurface.walk() : nullptr;
+    if (walk) {
         bool walked = !automatic;
         if (automatic) {
             Vec3 lo, hi;
@@ -221,7 +223,12 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     Sampler sampler(object);
     const PointCloud* cloud = nullptr;
     Rgb single(0.0);
-    if ((automatic || subsurface.directional()) && settings.auto_single_scatter) {
+    if (subsurface.traced_single_scatter()) {
+        // single scattering along the view ray inside the object's own shape (any light
+        // direction, curved faces, the back of a sheet): RandomWalk::single_scatter
+        Walker walker(object);
+        single = subsurface.walk()->single_scatter(walker, x, n, to_eye, settings.single_scatter_points, point_seed(x));
+    } else if ((automatic || subsurface.directional()) && settings.auto_single_scatter) {
         // the single-scattering BRDF of a half-space, lit by every light as the light loop would;
         // with a direction-aware profile, times the light upstream over the light at x
         // (Subsurface::single_scatter_upstream)

@@ -134,10 +134,10 @@ Rgb ExactProfile::entry_shift(double cos_i) const {
     return v;
 }
 
-SlabProfiles ExactProfile::slab_profiles(const Dipole& dipole, double d) const {
+SlabProfiles ExactProfile::slab_profiles(const Dipole& dipole, double d, bool single_traced) const {
     // With slab tables covering (g, eta): its own slabs (DIPOLE.md 6a), the multipole where a
     // channel's thickness lies outside the tables' nodes.
-    return make_exact_slab_profiles(*this, dipole, d, multipole_scale(dipole));
+    return make_exact_slab_profiles(*this, dipole, d, multipole_scale(dipole), nullptr, single_traced);
 }
 
 std::string ExactProfile::slab_note() const {
@@ -149,7 +149,7 @@ std::string ExactProfile::slab_note() const {
 // ---------------------------------------------------------------- slabs
 
 SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& k,
-                                      int* tabulated) {
+                                      int* tabulated, bool single_traced) {
     if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("make_exact_slab_profiles: thickness must be finite and > 0");
     const ProfileTables* tables = model.slab_tables();
     if (tabulated) *tabulated = 0;
@@ -183,9 +183,10 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
             ++from_tables;
             x.st = st;
             // T: the tables' total of all orders in the multipole's radial shape (the tables'
-            // transmission profile is photon noise near rho = 0 beyond a few mfp: slab.h).
+            // transmission profile is photon noise near rho = 0 beyond a few mfp: slab.h); its
+            // multiple scattering alone where the finish traces single scattering itself.
             x.multipole = SlabChannel::make(dipole.channel(c), d);
-            const double t_all = x.t->total() + x.t->single(), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
+            const double t_all = x.t->total() + (single_traced ? 0.0 : x.t->single()), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
             x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
             out.R_total[c] = x.r->total();
             out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;

@@ -7,7 +7,7 @@
 
 namespace shading {
 
-SlabProfiles RadialProfile::slab_profiles(const Dipole& dipole, double d) const {
+SlabProfiles RadialProfile::slab_profiles(const Dipole& dipole, double d, bool) const {
     return make_slab_profiles(dipole, d, multipole_scale(dipole));
 }
 
@@ -48,7 +48,7 @@ Rgb DipoleRadialProfile::entry_factor(double cos_i) const {
     return Rgb(fresnel_transmittance(cos_i, d_.medium().eta));
 }
 
-SlabProfiles DipoleRadialProfile::slab_profiles(const Dipole& dipole, double d) const {
+SlabProfiles DipoleRadialProfile::slab_profiles(const Dipole& dipole, double d, bool) const {
     return make_slab_profiles(dipole, d, Rgb(1.0));
 }
 

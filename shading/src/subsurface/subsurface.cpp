@@ -32,11 +32,16 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     directional_ = settings_.directional && model_->entry_shift(0.5).max_component() > 0;
     // ... and then single scattering at each lookup, lit from upstream (single_scatter_upstream),
     // not by the light loop's BRDF
-    if (directional_ && settings_.method == SubsurfaceSettings::Method::Profile) {
+    if (settings_.single_scatter_points < 0 || settings_.single_scatter_points > kMaxSingleScatterPoints)
+        throw std::invalid_argument("dipole: single_scatter_samples must be 0 (the half-space's formula) to " +
+                                    std::to_string(kMaxSingleScatterPoints) + ", got " +
+                                    std::to_string(settings_.single_scatter_points));
+    // ... and so does single scattering traced in the object's shape
+    if ((directional_ || settings_.single_scatter_points > 0) && settings_.method == SubsurfaceSettings::Method::Profile) {
         settings_.auto_single_scatter = settings_.single_scatter;
         settings_.single_scatter = false;
     }
-    if (settings_.method != SubsurfaceSettings::Method::Profile)
+    if (settings_.method != SubsurfaceSettings::Method::Profile || settings_.single_scatter_points > 0)
         walk_ = std::make_unique<const RandomWalk>(medium, settings_.walk);
     if (settings_.method == SubsurfaceSettings::Method::RandomWalk)
         return;  // no cloud, no slabs: the walk is exact in any geometry
@@ -45,7 +50,7 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
         const double d_min = kSlabMinMfp * mean_free_path();
         if (slab_threshold_ > d_min && d_min > 0) {
             slabs_ = std::make_unique<SlabCache>(d_min, slab_threshold_,
-                                                 [this](double d) { return model_->slab_profiles(dipole_, d); });
+                                                 [this](double d) { return model_->slab_profiles(dipole_, d, traced_single_scatter()); });
         } else {
             slab_threshold_ = 0;  // (a medium without scattering: nothing to do)
         }

@@ -35,6 +35,9 @@ struct DipoleParams {
     enum class Method { Profile, RandomWalk, Auto };
     Method method = Method::Profile;
     std::optional<int> samples;                           // walks per shaded point (random_walk)
+    // depths per channel for single scattering traced in the object's own shape (0, the
+    // default: the half-space's formula); SubsurfaceSettings::single_scatter_points
+    std::optional<int> single_scatter_samples;
     std::string file;                                     // where the block is written, for its notes
     int line = 0;
 };

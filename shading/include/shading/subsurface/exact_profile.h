@@ -39,7 +39,7 @@ public:
     std::string describe() const override { return "exact"; }
     // Thin geometry: the tables' slabs where they cover a channel (make_exact_slab_profiles),
     // the multipole scaled to this profile's total elsewhere.
-    SlabProfiles slab_profiles(const Dipole& dipole, double d) const override;
+    SlabProfiles slab_profiles(const Dipole& dipole, double d, bool single_traced) const override;
     std::string slab_note() const override;
     // Warnings for the user (g clamped to the tables).
     const std::vector<std::string>& notes() const { return notes_; }
@@ -74,8 +74,9 @@ private:
 // rho = 0 beyond a few mfp, while their total holds (DIPOLE.md 6a). Channels the tables don't
 // cover (no tables, or d outside their slab nodes): the multipole with R scaled by `scale`, as
 // make_slab_profiles.
-// `tabulated` (optional): how many channels came from the tables.
+// `tabulated` (optional): how many channels came from the tables. single_traced: T holds the
+// multiple scattering only (the finish traces single scattering itself, on both faces).
 SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& scale,
-                                      int* tabulated = nullptr);
+                                      int* tabulated = nullptr, bool single_traced = false);
 
 }  // namespace shading

@@ -54,8 +54,10 @@ public:
     // Thin geometry: the profiles of a slab of thickness d (scene units) of this medium, whose
     // dipole is `dipole`. By default the multipole (slab.h) with R scaled per channel to this
     // profile's half-space total (multipole_scale), so that a slab at the threshold reflects
-    // what the half-space does; T as it is.
-    virtual SlabProfiles slab_profiles(const Dipole& dipole, double d) const;
+    // what the half-space does; T as it is. single_traced: the finish traces single scattering
+    // in the object's shape (`single_scatter_samples`, both faces), so T must leave it out
+    // where it holds it (the exact profile's tables).
+    virtual SlabProfiles slab_profiles(const Dipole& dipole, double d, bool single_traced) const;
     // What thin geometry falls back to with this profile, for the statistics ("": nothing).
     virtual std::string slab_note() const { return ""; }
 
@@ -78,7 +80,7 @@ public:
     bool includes_single_scattering() const override { return true; }
     std::string describe() const override { return "dipole"; }
     // The multipole itself (its R meets this dipole's half-space).
-    SlabProfiles slab_profiles(const Dipole& dipole, double d) const override;
+    SlabProfiles slab_profiles(const Dipole& dipole, double d, bool single_traced) const override;
     const Dipole& dipole() const { return d_; }
 
 private:

@@ -119,6 +119,18 @@ public:
     // gives the same pixel (the renderer seeds with the hit point).
     Rgb radiance(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t seed) const;
 
+    // Single scattering alone, in the object's own shape: pi x radiance leaving x toward to_eye
+    // from light scattered once inside, along the refracted view ray up to where it leaves the
+    // object, every light by next_event (its beam entering through whichever face it crosses,
+    // curved or the back of a sheet, its internal reflections included). `points` depths per
+    // channel, one per stratum of exp(-sigma_t (1 + k) t) truncated at the far face, k the
+    // half-space's ratio of the view and light paths for the light most nearly overhead: exact on
+    // a flat face, a smooth remainder elsewhere. Deterministic for a seed (no roulette; the
+    // seed only names the mirrored beams' roulette). For `single_scatter_samples` (the
+    // profile's finish), instead of the half-space's single-scattering BRDF.
+    Rgb single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, int points,
+                       std::uint64_t seed) const;
+
     // One walk (for tests that need per-walk values): pi x radiance estimate of a single walk.
     Rgb walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, std::uint64_t& rng_state) const;
 
@@ -141,6 +153,9 @@ private:
     // *guide: from v toward where the strongest light's beam enters (when *has_guide).
     Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
                    std::uint64_t& state, Vec3* guide, bool* has_guide) const;
+
+    // Radiance inside to radiance leaving toward the eye at cos_o: Ft(cos_o) / eta^2.
+    double exit_weight(double cos_o) const;
 
     WalkSettings settings_;
     double eta_;

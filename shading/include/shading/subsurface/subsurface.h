@@ -60,6 +60,9 @@
 
 namespace shading {
 
+// The most depths per channel `single_scatter_samples` takes (each costs a light path per light).
+constexpr int kMaxSingleScatterPoints = 256;
+
 struct SubsurfaceSettings {
     double spacing = 0;        // base sample spacing in scene units; 0: automatic (sample_spacing())
     double max_angle = 0.7;    // hierarchical error threshold (PointCloud::far_exitance)
@@ -87,6 +90,12 @@ struct SubsurfaceSettings {
     // auto_lengths diffusion lengths (small objects, sheets: where the profile's assumptions
     // fail), the profile elsewhere; single scattering then comes with the profile's lookups
     // (auto_single_scatter), not from the BRDF, so walked objects do not count it twice.
+    // Single scattering traced in the object's own shape (`single_scatter_samples N`,
+    // RandomWalk::single_scatter: N depths per channel along each view ray) instead of the
+    // half-space's BRDF: right on curved and thin objects and for light from behind a sheet.
+    // 0 (the default): the BRDF. With N > 0 and method profile the constructor moves
+    // single_scatter to auto_single_scatter (at each lookup), as for `directional`.
+    int single_scatter_points = 0;
     enum class Method { Profile, RandomWalk, Auto };
     Method method = Method::Profile;
     WalkSettings walk;
@@ -113,8 +122,11 @@ public:
     const RadialProfile& model() const { return *model_; }
     const std::shared_ptr<const RadialProfile>& model_ptr() const { return model_; }
     const SubsurfaceSettings& settings() const { return settings_; }
-    // The walk of `method random_walk` and `method auto` (null for profiles).
+    // The walk of `method random_walk` and `method auto`, and of single scattering traced in
+    // the object (single_scatter_points > 0); null otherwise.
     const RandomWalk* walk() const { return walk_.get(); }
+    // Whether single scattering is traced in the object's shape at each lookup.
+    bool traced_single_scatter() const { return settings_.single_scatter_points > 0 && settings_.auto_single_scatter; }
     // Whether lookups use the profile's entry shifts (settings.directional and a profile with
     // them: shading/DIPOLE.md 6b).
     bool directional() const { return directional_; }
