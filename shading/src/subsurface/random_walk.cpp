@@ -442,6 +442,7 @@ Rgb RandomWalk::single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, c
         if (!(sigma_s_[c] > 0) || !(sigma_t_[c] > 0)) continue;
         double rate = sigma_t_[c] * (1.0 + k);
         if (!std::isfinite(tb) && !(rate > 0)) rate = sigma_t_[c];  // an unbounded ray needs a decaying density
+        if (std::isfinite(tb) && rate * tb < -700.0) rate = -700.0 / tb;  // growing: e^700 stays finite
         // exp(-rate t) truncated at the far face tb (rate of either sign; uniform when rate tb is
         // negligible): its mass and, per stratum, the depth
         const bool uniform = std::isfinite(tb) && std::fabs(rate * tb) < 1e-9;
