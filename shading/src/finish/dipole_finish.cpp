@@ -292,6 +292,8 @@ std::vector<std::string> finish_statistics() {
     if (ws.auto_walked + ws.auto_profiled > 0)
         line("Dipole method auto: %.0f walked, %.0f by profile (walk: < %g diffusion lengths)", double(ws.auto_walked),
              double(ws.auto_profiled), SubsurfaceSettings().auto_lengths);
+    if (ws.single_points > 0)
+        line("Dipole traced single scattering: %8.0f points (single_scatter_samples)", double(ws.single_points));
     if (ws.walks > 0) {
         line("Dipole random walks: %14.0f         Vertices/walk: %7.1f", double(ws.walks), double(ws.vertices) / double(ws.walks));
         line("Dipole walk lights: %15.0f paths (next-event estimates)", double(ws.light_paths));

@@ -17,7 +17,7 @@ constexpr double kFocusStep = 3e-4;
 constexpr double kMaxFocus = 100.0;
 
 std::atomic<std::uint64_t> g_walks{0}, g_vertices{0}, g_light_paths{0}, g_truncated{0}, g_auto_walked{0},
-    g_auto_profiled{0};
+    g_auto_profiled{0}, g_single_points{0};
 
 Rgb exp_neg(const Rgb& sigma, double t) {
     return Rgb(std::exp(-sigma.r * t), std::exp(-sigma.g * t), std::exp(-sigma.b * t));
@@ -41,6 +41,7 @@ WalkStats random_walk_stats() {
     s.truncated = g_truncated.load(std::memory_order_relaxed);
     s.auto_walked = g_auto_walked.load(std::memory_order_relaxed);
     s.auto_profiled = g_auto_profiled.load(std::memory_order_relaxed);
+    s.single_points = g_single_points.load(std::memory_order_relaxed);
     return s;
 }
 
@@ -399,6 +400,7 @@ Rgb RandomWalk::single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, c
     Vec3 d;
     if (!refract_into(-to_eye, n, eta_, &d)) return Rgb(0.0);
     const double start = exit_weight(cos_o);
+    g_single_points.fetch_add(1, std::memory_order_relaxed);
     WalkScene::Hit h{};
     const double tb = scene.leave(x, d, &h) ? h.t : kInf;
     // The depths follow the light's own attenuation: at depth t along the view ray the light

@@ -102,6 +102,7 @@ struct WalkSettings {
 struct WalkStats {
     std::uint64_t walks = 0, vertices = 0, light_paths = 0, truncated = 0;
     std::uint64_t auto_walked = 0, auto_profiled = 0;  // method auto: objects
+    std::uint64_t single_points = 0;  // shaded points whose single scattering was traced (single_scatter)
 };
 // `method auto`'s decisions, one per object.
 void random_walk_count_auto(bool walked);
