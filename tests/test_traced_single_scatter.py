@@ -140,3 +140,15 @@ def test_a_back_lit_sheet_counts_single_scattering_once(fork):
     assert worst[("single_scatter_samples 16", 0)] < SHEET_TOL
     assert worst[("single_scatter_samples 16", 1)] < SHEET_TOL
     assert min(worst[("", 0)], worst[("", 1)]) > SHEET_DEFAULT_OFF
+
+
+def test_asking_for_it_with_single_scattering_off_says_so(fork):
+    """`profile dipole` leaves single scattering off (its Rd stands for it): single_scatter_samples
+    then does nothing, and the user is told so at the block, not left guessing."""
+    text = FLAT.format(extra="profile dipole single_scatter_samples 8")
+    r = runner.render(text, fork, width=8, height=8)
+    notes = [w for w in r.warnings if "single_scatter_samples has no effect" in w]
+    assert len(notes) == 1 and "single_scatter on" in notes[0]
+    on = runner.render(FLAT.format(extra="profile dipole single_scatter on single_scatter_samples 8"), fork, width=8,
+                       height=8)
+    assert not any("single_scatter_samples has no effect" in w for w in on.warnings)

@@ -198,6 +198,14 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (exact)
         for (const std::string& note : exact->notes())
             model->notes.push_back(FinishNote{p.file, p.line, medium_name(p, medium) + ": " + note});
+    if (p.single_scatter_samples && *p.single_scatter_samples > 0 && !subsurface->traced_single_scatter())
+        model->notes.push_back(FinishNote{p.file, p.line,
+                                          medium_name(p, medium) + ": single_scatter_samples has no effect: single "
+                                          "scattering is off" +
+                                              std::string(p.single_scatter ? " (single_scatter off)"
+                                                                           : " (profile dipole leaves it off: its Rd "
+                                                                             "stands for it; add single_scatter on to "
+                                                                             "trace it)")});
     return model;
 }
 
