@@ -126,8 +126,8 @@ public:
     // curved or the back of a sheet, its internal reflections included). `points` depths per
     // channel, one per stratum of exp(-sigma_t (1 + k) t) truncated at the far face, k the
     // half-space's ratio of the view and light paths for the light most nearly overhead: exact on
-    // a flat face, a smooth remainder elsewhere. Deterministic for a seed (no roulette; the
-    // seed only names the mirrored beams' roulette). For `single_scatter_samples` (the
+    // a flat face, a smooth remainder elsewhere. Deterministic: no roulette anywhere (next_event's
+    // floor is 0), so `seed` changes nothing today. For `single_scatter_samples` (the
     // profile's finish), instead of the half-space's single-scattering BRDF.
     Rgb single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, int points,
                        std::uint64_t seed) const;
