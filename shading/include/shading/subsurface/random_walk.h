@@ -124,9 +124,10 @@ public:
     // from light scattered once inside, along the refracted view ray up to where it leaves the
     // object, every light by next_event (its beam entering through whichever face it crosses,
     // curved or the back of a sheet, its internal reflections included). `points` depths per
-    // channel, one per stratum of exp(-sigma_t (1 + k) t) truncated at the far face, k the
-    // half-space's ratio of the view and light paths for the light most nearly overhead: exact on
-    // a flat face, a smooth remainder elsewhere. Deterministic: no roulette anywhere (next_event's
+    // channel, one per stratum of exp(-sigma_t (1 + k) t) truncated at the far face, k the slope
+    // of the light's path inside against depth, read from the object by a probe for the light
+    // most nearly along the normal: exact on a flat face and through parallel faces lit from
+    // behind, a smooth remainder elsewhere. Deterministic: no roulette anywhere (next_event's
     // floor is 0), so `seed` changes nothing today. For `single_scatter_samples` (the
     // profile's finish), instead of the half-space's single-scattering BRDF.
     Rgb single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, int points,
