@@ -15,6 +15,8 @@ namespace {
 // focusing, and the cap of that factor at a caustic.
 constexpr double kFocusStep = 3e-4;
 constexpr double kMaxFocus = 100.0;
+// The least survival probability of a beam's roulette before its solve (beam_path).
+constexpr double kMinBeamKeep = 0.1;
 
 std::atomic<std::uint64_t> g_walks{0}, g_vertices{0}, g_light_paths{0}, g_truncated{0}, g_auto_walked{0},
     g_auto_profiled{0}, g_single_points{0};
@@ -114,19 +116,16 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
             if (j == 0 && first) {
                 // a reflected beam that would arrive weaker than `floor` in every channel is
                 // followed by roulette (unbiased): a deep vertex's mirrored light is negligible
-                const double bound = e->mirror * exp_neg(sigma_t_, e->length).max_component();
-                if (bound < floor) {
-                    if (!(uniform_double(splitmix64(state)) * floor < bound)) return false;
-                    out->keep = bound / floor;
-                } else {
-                    out->keep = 1.0;
+                const double target = e->mirror * exp_neg(sigma_t_, e->length).max_component() / floor;
+                if (target < out->keep) {
+                    if (!(uniform_double(splitmix64(state)) * out->keep < target)) return false;
+                    out->keep = target;
                 }
             }
             normals[j] = e->h.n;
             e->dir = normalize(e->dir - e->h.n * (2.0 * c));
             o = e->h.p;
         }
-        if (reflections == 0) out->keep = 1.0;
         first = false;
         if (!scene.leave(o, e->dir, &e->h)) return false;
         e->length += e->h.t;
@@ -167,6 +166,25 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
         if (!evaluate(w, &e)) return false;
         double G[2];
         if (!residual(e, u, G)) return false;
+        if (step == 0 && floor > 0) {
+            // Roulette before the solve (the solve, ~6 evaluations, is most of a deep vertex's
+            // cost), from the first evaluation's path: the direct beam's length predicted
+            // along the refracted direction F(w) to the entry's tangent plane (exact on a flat
+            // face), a mirrored beam's as its first guess ran, times its reflectances. Kept
+            // with probability bound / floor (a mirrored beam may already have been, after its
+            // first leg), never below kMinBeamKeep here, so that a prediction too long (a
+            // curved face) cannot give a surviving beam a large weight.
+            const double along = dot(e.next, e.h.n), depth = dot(e.h.p - v, e.h.n);
+            const double predicted = reflections == 0 && along > 0 && depth > 0 ? std::min(depth / along, e.length)
+                                                                                  : e.length;
+            const double bound = e.mirror * exp_neg(sigma_t_, predicted).max_component();
+            out->bound = bound;
+            const double target = bound < floor ? std::max(bound / floor, kMinBeamKeep) : 1.0;
+            if (target < out->keep) {
+                if (!(uniform_double(splitmix64(state)) * out->keep < target)) return false;
+                out->keep = target;
+            }
+        }
         if (dot(e.next, w) > 1.0 - 1e-12) {
             // The beam's focusing (DIPOLE.md, random walk): the light entering over dA at the
             // entry crosses v through dA_perp = t^2 |det J_G| dw (its offset at v is -t G), while
@@ -233,19 +251,31 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const
         Vec3 to_light;
         if (!scene.light_direction(i, v, &to_light)) continue;
         Vec3 beam_dir = -to_light;  // where the beam goes inside, roughly: the first guess of each path
+        double direct = 1.0;        // the direct beam's predicted attenuation (beam_path's first evaluation)
         for (int k = 0; k <= reflections; k++) {
             BeamPath b;
+            if (k > 0 && direct < floor) {
+                // A mirrored beam is longer than the direct one on any slab or convex face:
+                // where the direct beam is predicted weaker than `floor`, the mirrored ones
+                // are followed by roulette before their first leg (kept with probability
+                // direct / floor, at least kMinBeamKeep; beam_path's roulettes go on from it).
+                b.keep = std::max(direct / floor, kMinBeamKeep);
+                if (!(uniform_double(splitmix64(state)) < b.keep)) continue;
+            }
             // k = 0: toward the light; k odd: along the beam (to the face that mirrors it back);
             // k even: against it
             const Vec3 guess = k == 0 ? to_light : (k % 2 == 1 ? beam_dir : -beam_dir);
             g_light_paths.fetch_add(1, std::memory_order_relaxed);
-            if (!beam_path(scene, i, v, k, guess, &b, floor, state)) continue;
+            const bool found = beam_path(scene, i, v, k, guess, &b, floor, state);
+            if (k == 0) direct = b.bound;
+            if (!found) continue;
             if (k == 0) beam_dir = -b.w;
             const double cos_i = dot(b.to_light, b.entry.n), cos_t = b.cos_t;
             if (!(cos_i > 0 && cos_t > 0)) continue;
             // the beam's irradiance across its own direction inside: what crosses a unit of
             // surface (c cos_i Ft) spread over cos_t of it; a flat mirror keeps it, times F
-            const double beam = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t * b.focus * b.mirror / b.keep;
+            const double unkept = cos_i * (1.0 - fresnel_dielectric(cos_i, eta_)) / cos_t * b.focus * b.mirror;
+            const double beam = unkept / b.keep;
             const Rgb tr = exp_neg(sigma_t_, b.length);
             const double cos_phase = dot(b.w, d);  // light along -w, scattered to -d
             Rgb f;
@@ -253,7 +283,7 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const
             if (!(f.max_component() > 0)) continue;
             if (k == 0) {
                 // the guide for the next direction: the unshadowed strength per unit phase
-                const double strength = beam * tr.max_component() * beta.max_component();
+                const double strength = unkept * tr.max_component() * beta.max_component();
                 if (strength > strongest) {
                     strongest = strength;
                     *guide = b.w;
@@ -264,7 +294,7 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const
             // beam arrives weaker than `floor` of its strength in every channel (unbiased)
             const double most = tr.max_component() * b.mirror;
             double keep = 1.0;
-            if (most < floor && k == 0) {
+            if (most < floor && k == 0 && b.keep == 1.0) {  // (b.keep < 1: already rouletted before its solve)
                 keep = most / floor;
                 if (!(uniform_double(splitmix64(state)) < keep)) continue;
             }

@@ -145,7 +145,8 @@ private:
         double length = 0;       // inside the medium
         double mirror = 1;       // product of the Fresnel reflectances on the way
         double cos_t = 0;        // cosine of the refracted beam with the inward normal at the entry
-        double keep = 1;         // roulette survival probability of a mirrored beam
+        double keep = 1;         // in: survival probability so far; out: of the whole roulette before the solve
+        double bound = 1;        // predicted attenuation at the first evaluation (times the reflectances)
         double focus = 1;        // the beam's cross-section at the entry over at v (a curved face's lens: 1 when flat)
     };
     bool beam_path(WalkScene& scene, int light, const Vec3& v, int reflections, Vec3 w, BeamPath* out,
