@@ -127,9 +127,11 @@ public:
     // channel, one per stratum of exp(-sigma_t (1 + k) t) truncated at the far face, k the slope
     // of the light's path inside against depth, read from the object by a probe for the light
     // most nearly along the normal: exact on a flat face and through parallel faces lit from
-    // behind, a smooth remainder elsewhere. Deterministic: no roulette anywhere (next_event's
-    // floor is 0), so `seed` changes nothing today. For `single_scatter_samples` (the
-    // profile's finish), instead of the half-space's single-scattering BRDF.
+    // behind, a smooth remainder elsewhere. The direct beams without roulette (next_event's
+    // floor 0: on a flat face the sum is exact); a mirrored beam predicted weaker than 1e-4
+    // of its strength by roulette from `seed` (the same seed, the same value). For
+    // `single_scatter_samples` (the profile's finish), instead of the half-space's
+    // single-scattering BRDF.
     Rgb single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3& to_eye, int points,
                        std::uint64_t seed) const;
 
@@ -154,8 +156,9 @@ private:
     // Light from every light scattered at v toward -d, times the walk's weight beta; a beam
     // attenuated below `floor` in every channel is shadow-tested by roulette.
     // *guide: from v toward where the strongest light's beam enters (when *has_guide).
+    // mirror_floor: the same for the mirrored beams (negative: `floor`).
     Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
-                   std::uint64_t& state, Vec3* guide, bool* has_guide) const;
+                   std::uint64_t& state, Vec3* guide, bool* has_guide, double mirror_floor = -1) const;
 
     // Radiance inside to radiance leaving toward the eye at cos_o: Ft(cos_o) / eta^2.
     double exit_weight(double cos_o) const;
