@@ -1,9 +1,10 @@
 """Subsurface in real geometry (issue 31): the dipole finish's profile method (at default settings,
 with ``directional on``, shading/DIPOLE.md 6b, not on sheets, where it shifts nothing, and with
 single scattering traced in the object, ``single_scatter_samples`` :data:`TRACED`, not on the
-edge, a flat face where it is the formula) and its random walk, rendered by the fork, against the independent volumetric reference
-(:mod:`harness.reference.volume_ref`, a numpy photon tracer sharing no code with the library),
-with the reference's own noise, the render times and each method's error.
+edge, a flat face where it is the formula), its random walk and ``method auto`` (which of the two
+it chose, at the walk's samples), rendered by the fork, against the independent volumetric
+reference (:mod:`harness.reference.volume_ref`, a numpy photon tracer sharing no code with the
+library), with the reference's own noise, the render times and each method's error.
 
 Scenes (lengths in mm, ``mm_per_unit 1``, parallel light of colour 1, orthographic cameras):
 
@@ -35,8 +36,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
+from typing import Optional
 
 import numpy as np
 
@@ -77,12 +80,29 @@ def vec(a) -> str:
     return "<" + ", ".join(f"{x:.12g}" for x in a) + ">"
 
 
-def render(text: str, w: int, h: int, fork):
+#: ``method auto``'s statistics line: objects walked and by profile.
+AUTO_LINE = re.compile(r"Dipole method auto: (\d+) walked, (\d+) by profile")
+
+
+def render(text: str, w: int, h: int, fork, chosen: Optional[dict] = None):
+    """The render's image and trace time; with ``chosen``, ``chosen["chose"]`` says what
+    ``method auto`` did ("walk" or "profile", from the statistics)."""
     r = runner.render(text, fork, width=w, height=h, float_exr=True, threads=2)
     img = r.image[..., :3].astype(np.float64)
     if not np.isfinite(img).all():
         raise AssertionError("NaN in the render")
+    if chosen is not None:
+        m = AUTO_LINE.search(r.stderr or "")
+        if not m:
+            raise AssertionError("no 'Dipole method auto' statistics line in the render's output")
+        chosen["chose"] = "walk" if int(m.group(1)) > 0 else "profile"
     return img, r.trace_seconds if r.trace_seconds is not None else r.wall_seconds
+
+
+def auto_extra(samples: int) -> str:
+    """The ``auto`` column: the finish's ``method auto`` at the walk's samples (it walks objects
+    under 10 diffusion lengths across, keeps the profile elsewhere)."""
+    return f" method auto samples {samples}"
 
 
 EDGE = """#version 3.7;
@@ -118,15 +138,18 @@ def edge_rows(args, fork) -> list[dict]:
                     row = dict(scene="edge", medium=name, eta=eta, g=g, angle=angle, ref_seconds=ref_s,
                                ref_noise=float((ref.plateau_err / plateau).max()))
                     for method, extra in (("profile", ""), ("directional", " directional on"),
-                                          ("walk", f" method random_walk samples {args.samples}")):
+                                          ("walk", f" method random_walk samples {args.samples}"),
+                                          ("auto", auto_extra(args.samples))):
                         text = EDGE.format(width=nx * step, height=ny * step, light=vec(to_light), edge=plate_edge(t),
                                            dipole=medium_text(name, g, eta) + extra)
-                        img, sec = render(text, nx, ny, fork)
+                        chosen = {} if method == "auto" else None
+                        img, sec = render(text, nx, ny, fork, chosen)
                         prof = img.mean(0).T  # (3, nx)
                         diff = np.abs(prof - ref.radiance) / plateau[:, None]
                         row[method] = dict(max_diff=float(diff.max()),
                                            plateau=float(np.abs(prof[:, -1] / ref.radiance[:, -1] - 1).max()),
-                                           edge=(prof[:, nx // 2] / plateau).round(3).tolist(), seconds=sec)
+                                           edge=(prof[:, nx // 2] / plateau).round(3).tolist(), seconds=sec,
+                                           **(chosen or {}))
                         if method == "walk":
                             # the walk's own noise: pixel scatter in the lit quarter (x > 2.25 mm)
                             lit = img[:, -5:, :].reshape(-1, 3)
@@ -183,12 +206,15 @@ def sheet_rows(args, fork) -> list[dict]:
                                    ref=want.tolist(), ref_seconds=ref_s / len(views),
                                    ref_noise=float(np.max(want_err / np.maximum(want, 1e-30))))
                         for method, extra in (("profile", ""), ("traced", f" single_scatter_samples {TRACED}"),
-                                              ("walk", f" method random_walk samples {args.samples}")):
+                                              ("walk", f" method random_walk samples {args.samples}"),
+                                              ("auto", auto_extra(args.samples))):
+                            chosen = {} if method == "auto" else None
                             img, sec = render(SHEET.format(bottom=-d, dipole=medium_text(name, g, eta) + extra, **cam),
-                                              8, 8, fork)
+                                              8, 8, fork, chosen)
                             got = img.reshape(-1, 3).mean(0)
                             rel = np.where(want > 1e-6, got / np.maximum(want, 1e-30) - 1, 0.0)
-                            row[method] = dict(error=float(np.abs(rel).max()), value=got.tolist(), seconds=sec)
+                            row[method] = dict(error=float(np.abs(rel).max()), value=got.tolist(), seconds=sec,
+                                               **(chosen or {}))
                         rows.append(row)
                         report(row)
     return rows
@@ -229,10 +255,12 @@ def sphere_rows(args, fork) -> list[dict]:
         inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
         for method, extra in (("profile", ""), ("directional", " directional on"),
                               ("traced", f" single_scatter_samples {TRACED}"),
-                              ("walk", f" method random_walk samples {max(1, args.samples // 16)}")):
+                              ("walk", f" method random_walk samples {max(1, args.samples // 16)}"),
+                              ("auto", auto_extra(max(1, args.samples // 16)))):
             text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
                                    dipole=medium_text(name, g, eta) + extra)
-            img, sec = render(text, n * over, n * over, fork)
+            chosen = {} if method == "auto" else None
+            img, sec = render(text, n * over, n * over, fork, chosen)
             small = img.reshape(n, over, n, over, 3).mean((1, 3)).transpose(2, 0, 1)  # (3, n, n)
             flux = small.sum((1, 2)) * (span / n) ** 2
             rms = []
@@ -242,7 +270,7 @@ def sphere_rows(args, fork) -> list[dict]:
                 rel = small[ch][use] / ref.image[ch][use] - 1
                 rms.append(float(np.sqrt(np.mean(rel ** 2))))
             row[method] = dict(flux=float(np.abs(flux / ref.flux - 1).max()), rms=max(rms) if rms else None,
-                               seconds=sec)
+                               seconds=sec, **(chosen or {}))
         noise = []
         for ch in range(3 if eta == 1.0 else 0):
             use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
@@ -262,13 +290,16 @@ def report(row: dict) -> None:
                 f"{p['seconds']:6.2f} s | directional on max {100 * d['max_diff']:6.2f} % plateau "
                 f"{100 * d['plateau']:5.2f} % edge {d['edge']} {d['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
                 f"edge {w['edge']} {w['seconds']:6.2f} s (its noise {100 * w['noise']:.1f} %, per walk {w['per_walk']:.1f}, "
-                f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s) | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
+                f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s) | auto ({row['auto']['chose']}) max "
+                f"{100 * row['auto']['max_diff']:6.2f} % plateau {100 * row['auto']['plateau']:5.2f} % "
+                f"{row['auto']['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
         head += f" d {row['mfp']:5.2f} mfp {row['side']:11s} view {row['view']:2d}"
         p, t, w = row["profile"], row["traced"], row["walk"]
         body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | traced single {100 * t['error']:7.2f} % "
                 f"{t['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
-                f"{w['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
+                f"{w['seconds']:6.2f} s | auto ({row['auto']['chose']}) {100 * row['auto']['error']:6.2f} % "
+                f"{row['auto']['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
     else:
         head += f" R {row['lengths']:4.1f} ld"
         p, d, t, w = row["profile"], row["directional"], row["traced"], row["walk"]
@@ -276,7 +307,9 @@ def report(row: dict) -> None:
         body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | directional on "
                 f"flux {100 * d['flux']:6.2f} % rms {pct(d['rms'])} % {d['seconds']:6.2f} s | traced single flux "
                 f"{100 * t['flux']:6.2f} % rms {pct(t['rms'])} % {t['seconds']:6.2f} s | walk flux "
-                f"{100 * w['flux']:6.2f} % rms {pct(w['rms'])} % {w['seconds']:6.2f} s | ref noise "
+                f"{100 * w['flux']:6.2f} % rms {pct(w['rms'])} % {w['seconds']:6.2f} s | auto ({row['auto']['chose']}) "
+                f"flux {100 * row['auto']['flux']:6.2f} % rms {pct(row['auto']['rms'])} % {row['auto']['seconds']:6.2f} s"
+                f" | ref noise "
                 f"{100 * row['ref_noise']:.2f} % (flux), {pct(row['ref_pixel_noise'])} % (pixel rms)")
     print(head, body, flush=True)
 
