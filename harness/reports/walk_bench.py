@@ -158,6 +158,11 @@ def edge_rows(args, fork) -> list[dict]:
                             walk_seconds = 2 * sec / (nx * ny * args.samples)  # 2 threads busy
                             row[method].update(noise=rel_px / math.sqrt(ny), per_walk=per_walk,
                                                to_1pc=walk_seconds * (per_walk / 0.01) ** 2)
+                            # The walk's time at the profile's error (the issue's equal-error speed):
+                            # the walks per pixel whose noise on the row-averaged profile equals
+                            # the profile's max |error| (a fraction of the plateau), the same image
+                            e = row["profile"]["max_diff"]
+                            row[method]["equal_error_seconds"] = (sec / args.samples) * (per_walk / (e * math.sqrt(ny))) ** 2
                     row["ref_edge"] = (ref.radiance[:, nx // 2] / plateau).round(3).tolist()  # x = +0.25 mm
                     rows.append(row)
                     report(row)
@@ -290,7 +295,8 @@ def report(row: dict) -> None:
                 f"{p['seconds']:6.2f} s | directional on max {100 * d['max_diff']:6.2f} % plateau "
                 f"{100 * d['plateau']:5.2f} % edge {d['edge']} {d['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
                 f"edge {w['edge']} {w['seconds']:6.2f} s (its noise {100 * w['noise']:.1f} %, per walk {w['per_walk']:.1f}, "
-                f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s) | auto ({row['auto']['chose']}) max "
+                f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s; at the profile's error "
+                f"{w['equal_error_seconds']:.3g} s, {w['equal_error_seconds'] / p['seconds']:.3g}x the profile) | auto ({row['auto']['chose']}) max "
                 f"{100 * row['auto']['max_diff']:6.2f} % plateau {100 * row['auto']['plateau']:5.2f} % "
                 f"{row['auto']['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
