@@ -259,10 +259,11 @@ Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const
         for (int k = 0; k <= reflections; k++) {
             BeamPath b;
             if (k > 0 && direct < floor) {
-                // A mirrored beam is longer than the direct one on any slab or convex face:
-                // where the direct beam is predicted weaker than `floor`, the mirrored ones
-                // are followed by roulette before their first leg (kept with probability
-                // direct / floor, at least kMinBeamKeep; beam_path's roulettes go on from it).
+                // A mirrored beam is longer than the direct one on a slab (and as a rule on a
+                // convex face; where not, kMinBeamKeep bounds the survivor's weight): where the
+                // direct beam is predicted weaker than `floor`, the mirrored ones are followed
+                // by roulette before their first leg (kept with probability direct / floor, at
+                // least kMinBeamKeep; beam_path's roulettes go on from it).
                 b.keep = std::max(direct / floor, kMinBeamKeep);
                 if (!(uniform_double(splitmix64(state)) < b.keep)) continue;
             }
