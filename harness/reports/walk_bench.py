@@ -220,6 +220,13 @@ def sheet_rows(args, fork) -> list[dict]:
                             rel = np.where(want > 1e-6, got / np.maximum(want, 1e-30) - 1, 0.0)
                             row[method] = dict(error=float(np.abs(rel).max()), value=got.tolist(), seconds=sec,
                                                **(chosen or {}))
+                            if method == "walk":
+                                # the walk's own noise: the 64 pixels see the same radiance
+                                px = img.reshape(-1, 3)
+                                use = px.mean(0) > 0
+                                per_walk = float((px.std(0)[use] / px.mean(0)[use]).max()) * math.sqrt(args.samples)
+                                walk_seconds = 2 * sec / (px.shape[0] * args.samples)  # 2 threads busy
+                                row[method].update(per_walk=per_walk, to_1pc=walk_seconds * (per_walk / 0.01) ** 2)
                         rows.append(row)
                         report(row)
     return rows
@@ -304,7 +311,7 @@ def report(row: dict) -> None:
         p, t, w = row["profile"], row["traced"], row["walk"]
         body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | traced single {100 * t['error']:7.2f} % "
                 f"{t['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
-                f"{w['seconds']:6.2f} s | auto ({row['auto']['chose']}) {100 * row['auto']['error']:6.2f} % "
+                f"{w['seconds']:6.2f} s (per walk {w['per_walk']:.2f}, 1 % noise per pixel in {w['to_1pc']:.3g} CPU s) | auto ({row['auto']['chose']}) {100 * row['auto']['error']:6.2f} % "
                 f"{row['auto']['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
     else:
         head += f" R {row['lengths']:4.1f} ld"
