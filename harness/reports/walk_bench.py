@@ -39,7 +39,6 @@ import math
 import re
 import sys
 import time
-from typing import Optional
 
 import numpy as np
 
@@ -84,19 +83,28 @@ def vec(a) -> str:
 AUTO_LINE = re.compile(r"Dipole method auto: (\d+) walked, (\d+) by profile")
 
 
-def render(text: str, w: int, h: int, fork, chosen: Optional[dict] = None):
-    """The render's image and trace time; with ``chosen``, ``chosen["chose"]`` says what
-    ``method auto`` did ("walk" or "profile", from the statistics)."""
+def render(text: str, w: int, h: int, fork):
+    """The render's image, its trace time, and what ``method auto`` chose ({"chose": "walk" or
+    "profile"}, from the statistics; {} for the other methods: a dict to add to the row)."""
     r = runner.render(text, fork, width=w, height=h, float_exr=True, threads=2)
     img = r.image[..., :3].astype(np.float64)
     if not np.isfinite(img).all():
         raise AssertionError("NaN in the render")
-    if chosen is not None:
-        m = AUTO_LINE.search(r.stderr or "")
-        if not m:
-            raise AssertionError("no 'Dipole method auto' statistics line in the render's output")
-        chosen["chose"] = "walk" if int(m.group(1)) > 0 else "profile"
-    return img, r.trace_seconds if r.trace_seconds is not None else r.wall_seconds
+    m = AUTO_LINE.search(r.stderr or "")
+    chosen = {"chose": "walk" if int(m.group(1)) > 0 else "profile"} if m else {}
+    return img, r.trace_seconds if r.trace_seconds is not None else r.wall_seconds, chosen
+
+
+def walk_noise(pixels: np.ndarray, seconds: float, samples: int) -> tuple[float, float, float]:
+    """The walk's noise from ``pixels`` (n, 3) that all see the same radiance, rendered in
+    ``seconds`` on 2 busy threads at ``samples`` walks each: (relative deviation of a pixel, of
+    one walk, CPU seconds per pixel to 1 % noise)."""
+    mean = pixels.mean(0)
+    use = mean > 0
+    rel_px = float((pixels.std(0)[use] / mean[use]).max())
+    per_walk = rel_px * math.sqrt(samples)
+    walk_seconds = 2 * seconds / (pixels.shape[0] * samples)
+    return rel_px, per_walk, walk_seconds * (per_walk / 0.01) ** 2
 
 
 def auto_extra(samples: int) -> str:
@@ -142,22 +150,19 @@ def edge_rows(args, fork) -> list[dict]:
                                           ("auto", auto_extra(args.samples))):
                         text = EDGE.format(width=nx * step, height=ny * step, light=vec(to_light), edge=plate_edge(t),
                                            dipole=medium_text(name, g, eta) + extra)
-                        chosen = {} if method == "auto" else None
-                        img, sec = render(text, nx, ny, fork, chosen)
+                        img, sec, chosen = render(text, nx, ny, fork)
                         prof = img.mean(0).T  # (3, nx)
                         diff = np.abs(prof - ref.radiance) / plateau[:, None]
                         row[method] = dict(max_diff=float(diff.max()),
                                            plateau=float(np.abs(prof[:, -1] / ref.radiance[:, -1] - 1).max()),
                                            edge=(prof[:, nx // 2] / plateau).round(3).tolist(), seconds=sec,
-                                           **(chosen or {}))
+                                           **chosen)
                         if method == "walk":
-                            # the walk's own noise: pixel scatter in the lit quarter (x > 2.25 mm)
-                            lit = img[:, -5:, :].reshape(-1, 3)
-                            rel_px = float((lit.std(0) / lit.mean(0)).max())
-                            per_walk = rel_px * math.sqrt(args.samples)
-                            walk_seconds = 2 * sec / (nx * ny * args.samples)  # 2 threads busy
-                            row[method].update(noise=rel_px / math.sqrt(ny), per_walk=per_walk,
-                                               to_1pc=walk_seconds * (per_walk / 0.01) ** 2)
+                            # the walk's own noise: pixel scatter in the lit quarter (x > 2.25 mm),
+                            # its time per walk from the whole image
+                            rel_px, per_walk, to_1pc = walk_noise(img[:, -5:, :].reshape(-1, 3),
+                                                                  sec * 5 / nx, args.samples)
+                            row[method].update(noise=rel_px / math.sqrt(ny), per_walk=per_walk, to_1pc=to_1pc)
                             # The walk's time at the profile's error (the issue's equal-error speed):
                             # the walks per pixel whose noise on the row-averaged profile equals
                             # the profile's max |error| (a fraction of the plateau), the same image
@@ -213,20 +218,15 @@ def sheet_rows(args, fork) -> list[dict]:
                         for method, extra in (("profile", ""), ("traced", f" single_scatter_samples {TRACED}"),
                                               ("walk", f" method random_walk samples {args.samples}"),
                                               ("auto", auto_extra(args.samples))):
-                            chosen = {} if method == "auto" else None
-                            img, sec = render(SHEET.format(bottom=-d, dipole=medium_text(name, g, eta) + extra, **cam),
-                                              8, 8, fork, chosen)
+                            img, sec, chosen = render(SHEET.format(bottom=-d, dipole=medium_text(name, g, eta) + extra,
+                                                                   **cam), 8, 8, fork)
                             got = img.reshape(-1, 3).mean(0)
                             rel = np.where(want > 1e-6, got / np.maximum(want, 1e-30) - 1, 0.0)
-                            row[method] = dict(error=float(np.abs(rel).max()), value=got.tolist(), seconds=sec,
-                                               **(chosen or {}))
+                            row[method] = dict(error=float(np.abs(rel).max()), value=got.tolist(), seconds=sec, **chosen)
                             if method == "walk":
                                 # the walk's own noise: the 64 pixels see the same radiance
-                                px = img.reshape(-1, 3)
-                                use = px.mean(0) > 0
-                                per_walk = float((px.std(0)[use] / px.mean(0)[use]).max()) * math.sqrt(args.samples)
-                                walk_seconds = 2 * sec / (px.shape[0] * args.samples)  # 2 threads busy
-                                row[method].update(per_walk=per_walk, to_1pc=walk_seconds * (per_walk / 0.01) ** 2)
+                                _, per_walk, to_1pc = walk_noise(img.reshape(-1, 3), sec, args.samples)
+                                row[method].update(per_walk=per_walk, to_1pc=to_1pc)
                         rows.append(row)
                         report(row)
     return rows
@@ -271,8 +271,7 @@ def sphere_rows(args, fork) -> list[dict]:
                               ("auto", auto_extra(max(1, args.samples // 16)))):
             text = SPHERE.format(far=10 * r, right=vec(span * right), up=vec(span * up), light=vec(light), r=r,
                                    dipole=medium_text(name, g, eta) + extra)
-            chosen = {} if method == "auto" else None
-            img, sec = render(text, n * over, n * over, fork, chosen)
+            img, sec, chosen = render(text, n * over, n * over, fork)
             small = img.reshape(n, over, n, over, 3).mean((1, 3)).transpose(2, 0, 1)  # (3, n, n)
             flux = small.sum((1, 2)) * (span / n) ** 2
             rms = []
@@ -282,7 +281,7 @@ def sphere_rows(args, fork) -> list[dict]:
                 rel = small[ch][use] / ref.image[ch][use] - 1
                 rms.append(float(np.sqrt(np.mean(rel ** 2))))
             row[method] = dict(flux=float(np.abs(flux / ref.flux - 1).max()), rms=max(rms) if rms else None,
-                               seconds=sec, **(chosen or {}))
+                               seconds=sec, **chosen)
         noise = []
         for ch in range(3 if eta == 1.0 else 0):
             use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())

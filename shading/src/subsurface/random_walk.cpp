@@ -245,8 +245,7 @@ bool RandomWalk::beam_path(WalkScene& scene, int light, const Vec3& v, int refle
 }
 
 Rgb RandomWalk::next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
-                           std::uint64_t& state, Vec3* guide, bool* has_guide, double mirror_floor) const {
-    if (mirror_floor < 0) mirror_floor = floor;
+                           double mirror_floor, std::uint64_t& state, Vec3* guide, bool* has_guide) const {
     Rgb sum(0.0);
     double strongest = 0;
     const int lights = scene.light_count();
@@ -362,7 +361,8 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
         beta = beta * sigma_s_ * tr * (1.0 / pdf);
         Vec3 guide;
         bool has_guide = false;
-        sum += next_event(scene, p, d, beta, settings_.light_floor, state, &guide, &has_guide) * pending;
+        const double light_floor = settings_.light_floor;
+        sum += next_event(scene, p, d, beta, light_floor, light_floor, state, &guide, &has_guide) * pending;
         pending = 1.0;
         const bool probing = probe_ && has_guide;
         if (probing) {
@@ -384,7 +384,8 @@ Rgb RandomWalk::walk(WalkScene& scene, const Vec3& x, const Vec3& n, const Vec3&
                     const Rgb bp = beta * sigma_s_ * tr2 * (pd / ((pd + pg) * pdf2));
                     Vec3 unused;
                     bool unused_flag = false;
-                    sum += next_event(scene, p + xd * t2, xd, bp, settings_.light_floor, state, &unused, &unused_flag);
+                    sum += next_event(scene, p + xd * t2, xd, bp, light_floor, light_floor, state, &unused,
+                                      &unused_flag);
                 }
             }
         }
@@ -495,7 +496,7 @@ Rgb RandomWalk::single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, c
             // mirrored one by roulette below kSingleMirrorFloor (a sheet's mirrored beams,
             // ~Fresnel's 2 %, stay above it; on a sphere of 3 diffusion lengths at eta 1.3
             // they never connect: 20 % of its trace saved, the image bit-identical)
-            sum[c] += next_event(scene, x + d * t, d, beta, 0.0, state, &guide, &has_guide, kSingleMirrorFloor)[c];
+            sum[c] += next_event(scene, x + d * t, d, beta, 0.0, kSingleMirrorFloor, state, &guide, &has_guide)[c];
         }
     }
     return sum * kPi;

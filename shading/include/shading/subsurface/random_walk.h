@@ -156,9 +156,9 @@ private:
     // Light from every light scattered at v toward -d, times the walk's weight beta; a beam
     // attenuated below `floor` in every channel is shadow-tested by roulette.
     // *guide: from v toward where the strongest light's beam enters (when *has_guide).
-    // mirror_floor: the same for the mirrored beams (negative: `floor`).
+    // mirror_floor: the same for the mirrored beams (the walk: `floor`).
     Rgb next_event(WalkScene& scene, const Vec3& v, const Vec3& d, const Rgb& beta, double floor,
-                   std::uint64_t& state, Vec3* guide, bool* has_guide, double mirror_floor = -1) const;
+                   double mirror_floor, std::uint64_t& state, Vec3* guide, bool* has_guide) const;
 
     // Radiance inside to radiance leaving toward the eye at cos_o: Ft(cos_o) / eta^2.
     double exit_weight(double cos_o) const;
