@@ -186,6 +186,8 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     std::shared_ptr<const RadialProfile> profile = exact;
     // the exact profile leaves single scattering to the BRDF; the dipole's Rd stands for it
     settings.single_scatter = p.single_scatter ? *p.single_scatter : p.exact_profile;
+    // measured for the exact profile (curvature.h); the dipole keeps Jensen 2001's unless asked
+    settings.curvature = p.curvature ? *p.curvature : p.exact_profile;
     if (p.method == DipoleParams::Method::Auto) {
         // walked objects have single scattering in the walk: the profile's objects get it at
         // each lookup (finish_subsurface_radiance), not from the BRDF the light loop adds

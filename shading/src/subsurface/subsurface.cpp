@@ -30,6 +30,14 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     reach_ = profile_->radius_containing(0.99);
     // Direction-aware: a profile that knows how far slanted light travels on inside.
     directional_ = settings_.directional && model_->entry_shift(0.5).max_component() > 0;
+    if (settings_.curvature) {
+        const Medium& m = dipole_.medium();
+        const Rgb sp = m.sigma_s_prime(), st = sp + m.sigma_a;  // 1/mm
+        for (int k = 0; k < 3; ++k)
+            if (sp[k] > 0)  // (without scattering nothing leaves by the profile)
+                curvature_length_[k] = curvature_coefficient(m.eta, sp[k] / st[k]) * curvature_anisotropy_weight(m.g[k]) /
+                                       (st[k] * m.mm_per_unit);
+    }
     // ... and then single scattering at each lookup, lit from upstream (single_scatter_upstream),
     // not by the light loop's BRDF
     if (settings_.single_scatter_points < 0 || settings_.single_scatter_points > kMaxSingleScatterPoints)
@@ -272,14 +280,25 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
         Rgb m = cloud.far_exitance_shifted(*profile_, x, n, r0, h, settings_.max_angle, cutoff(), &upstream, &visited);
         count_lookup(visited, false);
         m += upstream * cloud.level_near(level);
-        return m * model_->exit_factor(cos_o);
+        return curved(m, cloud, x, n) * model_->exit_factor(cos_o);
     }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
     Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited);
     count_lookup(visited, false);
     m += irradiance_here * cloud.level_near(level);
-    return m * model_->exit_factor(cos_o);
+    return curved(m, cloud, x, n) * model_->exit_factor(cos_o);
+}
+
+Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const {
+    if (!settings_.curvature) return m;
+    // over the base spacing's window whatever the lookup's level: a refined level's smaller
+    // window would give a curvature that steps where the level does
+    const double H = cloud.mean_curvature_about(x, n, cloud.spacing());
+    Rgb out = m;
+    for (int k = 0; k < 3; ++k)
+        out[k] *= 1.0 + std::clamp(curvature_length_[k] * H, -kMaxCurvatureGain, kMaxCurvatureGain);
+    return out;
 }
 
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
@@ -294,7 +313,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     Rgb m = slab_radiance(*slab.a, cloud, x, n, cos_o, irradiance_here, level, &visited);
     if (slab.b) m = m * (1.0 - slab.t) + slab_radiance(*slab.b, cloud, x, n, cos_o, irradiance_here, level, &visited) * slab.t;
     count_lookup(visited, true);
-    return m;
+    return curved(m, cloud, x, n);
 }
 
 Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n,

@@ -29,6 +29,7 @@ struct DipoleParams {
     std::optional<bool> single_scatter;                   // default: on with the exact profile
     std::optional<bool> thin_geometry;
     std::optional<bool> directional;                      // the exact profile's entry shifts (default off)
+    std::optional<bool> curvature;                        // the curvature correction (default: on with the exact profile)
     bool exact_profile = true;                            // `profile exact` (default) or `profile dipole`
     // `method profile` (the default), `method random_walk` or `method auto` (per object:
     // the walk for objects under 10 diffusion lengths across, the profile elsewhere)

@@ -121,6 +121,13 @@ public:
     // The transmitted irradiance about a point y near the surface: the (1 - w)-weighted mean E_t
     // of the points inside the window of spacing h about y (0 where none is).
     Rgb irradiance_about(const Vec3& y, double h) const;
+    // The mean curvature H of the surface at x (unit normal nx), from the points within the
+    // lookup window of spacing h about x (weights: area times 1 - w): the weighted
+    // least-squares fit of (nx - n_i).(x - p_i) = H |x - p_i|^2, each pair's normal curvature
+    // along its chord to first order. Exact on a sphere (1/R; -1/R seen from inside), 0 on a
+    // plane; points whose normal faces away from nx (n_i.nx <= 0: a sheet's other face) are
+    // left out; 0 where no other point is.
+    double mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const;
     static constexpr int kSmearNodes = 3;
     static const double kSmearT[kSmearNodes];
     static const double kSmearW[kSmearNodes];

@@ -46,6 +46,7 @@
 #include "shading/brdf/brdf.h"
 #include "shading/core/vec.h"
 #include "shading/subsurface/cloud_cache.h"
+#include "shading/subsurface/curvature.h"
 #include "shading/subsurface/dipole.h"
 #include "shading/subsurface/exact_profile.h"
 #include "shading/subsurface/point_cloud.h"
@@ -84,6 +85,10 @@ struct SubsurfaceSettings {
     // auto_single_scatter (at each lookup, not in the BRDF), as the finish does for `auto`.
     // Off by default: at creases and concave seams the result still depends on the sampling.
     bool directional = false;
+    // The exact profile's first-order correction for the surface's mean curvature
+    // (curvature.h; shading/DIPOLE.md 6d): off here, on by default in the finish with the
+    // exact profile.
+    bool curvature = false;
     // `method profile` (the above) or `method random_walk`: exact transport inside the
     // object's own surface (random_walk.h), no cloud, no profile, no single-scattering BRDF.
     // `method auto`: per object, the walk where its smallest bounding-box extent is below
@@ -130,6 +135,9 @@ public:
     // Whether lookups use the profile's entry shifts (settings.directional and a profile with
     // them: shading/DIPOLE.md 6b).
     bool directional() const { return directional_; }
+    // Per channel c(eta) mfp' in scene units (curvature.h): the exitance's relative change per
+    // unit of mean curvature; 0 with the correction off.
+    const Rgb& curvature_length() const { return curvature_length_; }
     // Single scattering next to a change of light (a shadow edge): the light that scatters once
     // under x toward to_eye entered upstream, at x + t z D (D the tangential offset per unit
     // depth of the refracted view and light rays, z the mean single-scattering depth per
@@ -177,7 +185,8 @@ public:
     // pixel += radiance(...): exit_factor(cos_o) M(x) (RGB; RadialProfile::exit_factor, the
     // dipole's is Ft(eta, cos_o)) at x (normal n) on an object whose
     // cloud is `cloud`, with E_t(x) the transmitted irradiance at x itself; 0 when the viewer
-    // is below the surface.
+    // is below the surface. With settings.curvature, M(x) times 1 + curvature_length() H per
+    // channel (H the cloud's mean curvature about x; curvature.h).
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here) const;
     // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
@@ -197,6 +206,10 @@ private:
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
     bool directional_ = false;  // the profile has entry shifts and settings.directional is on
+    Rgb curvature_length_;      // settings.curvature: c(eta) mfp' per channel, else 0
+    // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window
+    // of its base spacing).
+    Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const;
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
     mutable std::mutex auto_mutex_;
