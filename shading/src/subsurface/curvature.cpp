@@ -1,6 +1,7 @@
 // The curvature correction's coefficient c(eta, alpha') (curvature.h), measured.
 #include "shading/subsurface/curvature.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace shading {
@@ -62,7 +63,10 @@ double curvature_coefficient(double eta, double albedo) {
     locate(kAlbedo, kAlbedos, albedo, &j, &t);
     const double lo = kC[i][j] * (1 - t) + kC[i][j + 1] * t;
     const double hi = kC[i + 1][j] * (1 - t) + kC[i + 1][j + 1] * t;
-    return lo * (1 - s) + hi * s;
+    // Negative nodes (ior near 1, high albedo: the sphere's own size, lit straight on) are taken
+    // as 0: under light from the side the same spheres' whole flux is too dark already, and the
+    // term would darken it further (Skin1 of radius 4 mm at ior 1: -5.3 -> -8.0 % in red).
+    return std::max(0.0, lo * (1 - s) + hi * s);
 }
 
 }  // namespace shading

@@ -10,7 +10,7 @@
 // object's shape) measures both, to first order in the mean curvature H, as the flat profile's
 // multiple scattering being short by c(eta, alpha') mfp' H, mfp' = 1 / sigma_t': about
 // 0.8 mfp' / R at eta 1.3, growing with eta, and at eta 1 near 0 (slightly negative where the
-// albedo is high). Subsurface::radiance multiplies the profile's exitance by
+// albedo is high: taken as 0). Subsurface::radiance multiplies the profile's exitance by
 // 1 + c mfp' H per channel, within 1 -+ kMaxCurvatureGain.
 #pragma once
 
@@ -19,7 +19,7 @@ namespace shading {
 // c(eta, alpha'), alpha' the channel's reduced albedo sigma_s' / sigma_t': measured on a grid of
 // eta in [1, 2] (the exact profile's range) and alpha' in [0.4, 0.995], bilinear between its
 // nodes and held beyond them (below alpha' 0.4 multiple scattering is under a third of the
-// light, and its measurement noisier than its value).
+// light, and its measurement noisier than its value); never below 0 (curvature.cpp).
 double curvature_coefficient(double eta, double albedo);
 
 // The table is measured for isotropic scattering (g = 0). With forward scattering the flat
