@@ -37,6 +37,7 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
             if (sp[k] > 0)  // (without scattering nothing leaves by the profile)
                 curvature_length_[k] = curvature_coefficient(m.eta, sp[k] / st[k]) * curvature_anisotropy_weight(m.g[k]) /
                                        (st[k] * m.mm_per_unit);
+        curving_ = curvature_length_[0] != 0 || curvature_length_[1] != 0 || curvature_length_[2] != 0;
     }
     // ... and then single scattering at each lookup, lit from upstream (single_scatter_upstream),
     // not by the light loop's BRDF
@@ -291,7 +292,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
 }
 
 Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const {
-    if (!settings_.curvature) return m;
+    if (!curving_) return m;  // (off, or c 0 in every channel: no need for H)
     // over the base spacing's window whatever the lookup's level: a refined level's smaller
     // window would give a curvature that steps where the level does
     const double H = cloud.mean_curvature_about(x, n, cloud.spacing());

@@ -206,7 +206,8 @@ private:
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
     bool directional_ = false;  // the profile has entry shifts and settings.directional is on
-    Rgb curvature_length_;      // settings.curvature: c(eta) mfp' per channel, else 0
+    Rgb curvature_length_;      // settings.curvature: c(eta, alpha') mfp' per channel, else 0
+    bool curving_ = false;      // some channel's curvature_length_ is not 0
     // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window
     // of its base spacing).
     Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const;
