@@ -417,10 +417,9 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
     return sum;
 }
 
-Rgb PointCloud::irradiance_about(const Vec3& y, double h) const {
-    Rgb flux;
-    double area = 0;
-    if (nodes_.empty()) return flux;
+template <class Visit>
+void PointCloud::for_each_in_window(const Vec3& y, double h, Visit&& visit) const {
+    if (nodes_.empty()) return;
     const double r0 = 2.0 * h, inner2 = sqr(r0 - h), outer = r0 + h, outer2 = outer * outer;
     int stack[8 * kMaxDepth + 16];
     int top = 0;
@@ -433,45 +432,35 @@ Rgb PointCloud::irradiance_about(const Vec3& y, double h) const {
                 const Vec3 v = y - leaves_[i].p;
                 const double r2 = dot(v, v);
                 if (r2 >= outer2) continue;
-                const double w = 1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h));
-                flux += leaves_[i].flux * w;
-                area += points_[i].area * w;
+                visit(i, v, r2, 1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h)));
             }
             continue;
         }
         for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
     }
+}
+
+Rgb PointCloud::irradiance_about(const Vec3& y, double h) const {
+    Rgb flux;
+    double area = 0;
+    for_each_in_window(y, h, [&](int i, const Vec3&, double, double w) {
+        flux += leaves_[i].flux * w;
+        area += points_[i].area * w;
+    });
     return area > 0 ? flux * (1.0 / area) : Rgb(0.0);
 }
 
 double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const {
     double num = 0, den = 0;
-    if (nodes_.empty()) return 0.0;
-    const double r0 = 2.0 * h, inner2 = sqr(r0 - h), outer = r0 + h, outer2 = outer * outer;
-    int stack[8 * kMaxDepth + 16];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const Node& nd = nodes_[stack[--top]];
-        if (box_distance2(x, nd.lo, nd.hi) >= outer2) continue;
-        if (nd.child < 0) {
-            for (int i = nd.first; i < nd.first + nd.count; ++i) {
-                const SurfacePoint& q = points_[i];
-                const Vec3 v = x - q.p;
-                const double r2 = dot(v, v);
-                if (r2 >= outer2 || !(r2 > 0) || !(dot(q.n, nx) > 0)) continue;
-                // each point for its own area: a quadrature over the surface, whatever the
-                // sampling's density (refined levels)
-                const double w = q.area * (1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h)));
-                // least squares of (nx - n_i).v - H r2 with weights w / r2: its normal
-                // equation is sum w (nx - n_i).v = H sum w r2
-                num += w * dot(nx - q.n, v);
-                den += w * r2;
-            }
-            continue;
-        }
-        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
-    }
+    for_each_in_window(x, h, [&](int i, const Vec3& v, double r2, double w) {
+        const SurfacePoint& q = points_[i];
+        if (!(r2 > 0) || !(dot(q.n, nx) > 0)) return;
+        // each point for its own area (a quadrature over the surface, whatever the sampling's
+        // density); least squares of (nx - n_i).v - H r2 with weights A w / r2: its normal
+        // equation is sum A w (nx - n_i).v = H sum A w r2
+        num += q.area * w * dot(nx - q.n, v);
+        den += q.area * w * r2;
+    });
     return den > 0 ? num / den : 0.0;
 }
 

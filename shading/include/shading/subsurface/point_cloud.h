@@ -195,6 +195,10 @@ private:
     }
     double max_spacing_within(int start, const float* lo, const float* hi, double radius, double above) const;
     int nearest(const Vec3& x) const;
+    // visit(i, y - p_i, |y - p_i|^2, 1 - w) for every point i inside the window of spacing h
+    // about y (irradiance_about, mean_curvature_about).
+    template <class Visit>
+    void for_each_in_window(const Vec3& y, double h, Visit&& visit) const;
     // far_exitance (kSided false: every point on x's side, `transmit` unused) and
     // far_exitance_sided (true) in one traversal; cut_same2: the squared cutoff of `same`.
     template <bool kSided>
