@@ -135,8 +135,9 @@ public:
     // Whether lookups use the profile's entry shifts (settings.directional and a profile with
     // them: shading/DIPOLE.md 6b).
     bool directional() const { return directional_; }
-    // Per channel c(eta) mfp' in scene units (curvature.h): the exitance's relative change per
-    // unit of mean curvature; 0 with the correction off.
+    // Per channel c(eta, alpha') times the anisotropy weight times mfp', in scene units
+    // (curvature.h): the exitance's relative change per unit of mean curvature; 0 with the
+    // correction off.
     const Rgb& curvature_length() const { return curvature_length_; }
     // Single scattering next to a change of light (a shadow edge): the light that scatters once
     // under x toward to_eye entered upstream, at x + t z D (D the tangential offset per unit
