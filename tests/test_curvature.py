@@ -19,16 +19,12 @@ import numpy as np
 
 from harness.core import runner
 from harness.reference import volume_ref
-from harness.reports.walk_bench import SPHERE  # an orthographic view of a sphere at the origin
+from harness.reports.walk_bench import SPHERE, vec  # an orthographic view of a sphere at the origin
 
 #: the error with the correction, as a part of the error without it, per channel
 CURVATURE_SHRINK = 0.65
 #: the control: the red channel's error without the correction, relative (at least)
 CURVATURE_OFF = 0.1
-
-
-def vec(v) -> str:
-    return "<" + ", ".join(f"{x:.12g}" for x in v) + ">"
 
 
 def test_curvature_halves_the_profiles_deficit_on_a_refracting_sphere(fork):
