@@ -171,8 +171,10 @@ std::shared_ptr<const PointCloud> Subsurface::build(const ParallelFor& parallel,
     } else {
         report.unbounded = true;
     }
-    auto cloud = std::make_shared<const PointCloud>(std::move(points), [this](double h) { return near_reflectance(h); },
-                                                    &parallel);
+    auto built = std::make_shared<PointCloud>(std::move(points), [this](double h) { return near_reflectance(h); },
+                                              &parallel);
+    built->set_view_spacing(h0);
+    std::shared_ptr<const PointCloud> cloud = std::move(built);
 
     CloudRecord r;
     r.points = cloud->points().size();
@@ -294,8 +296,12 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
 Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const {
     if (!curving_) return m;  // (off, or c 0 in every channel: no need for H)
     // over the base spacing's window whatever the lookup's level: a refined level's smaller
-    // window would give a curvature that steps where the level does
-    const double H = cloud.mean_curvature_about(x, n, cloud.spacing());
+    // window would give a curvature that steps where the level does. The base is the view's
+    // (h0), or the lookup's level where the sampler coarsened it (out of the image's reach):
+    // the cloud's coarsest spacing, up to 8 h0, would put 64x the points in the window of a
+    // point in view (a block reaching far beyond the camera rendered 18x slower).
+    const double H = cloud.mean_curvature_about(
+        x, n, std::max(cloud.view_spacing(), cloud.level_spacing(cloud.lookup_level(x))));
     Rgb out = m;
     for (int k = 0; k < 3; ++k)
         out[k] *= 1.0 + std::clamp(curvature_length_[k] * H, -kMaxCurvatureGain, kMaxCurvatureGain);

@@ -60,6 +60,11 @@ public:
 
     // Coarsest spacing (the base sampling).
     double spacing() const { return levels_.empty() ? spacing_ : levels_.front().h; }
+    // The base spacing where the image is (the sampler's h0, before it coarsens the samples
+    // no visible point can see and before it refines any; spacing() until set): the window
+    // of a fit that must not step where the levels do (Subsurface::curved).
+    double view_spacing() const { return view_spacing_ > 0 ? view_spacing_ : spacing(); }
+    void set_view_spacing(double h) { view_spacing_ = h; }
     // The split a lookup at x uses: the lookup spacing of the point nearest to x.
     int lookup_level(const Vec3& x) const;
     double level_spacing(int level) const { return levels_[level].h; }
@@ -210,6 +215,7 @@ private:
     Rgb exact_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,
                   double h, const Rgb& near_opposite) const;
     double spacing_ = 0;
+    double view_spacing_ = 0;
     std::vector<SurfacePoint> points_;
     std::vector<Leaf> leaves_;            // points_ in the same order, as the far sum reads them
     std::vector<std::uint8_t> level_of_;  // per point: index into levels_ (empty: all 0)
