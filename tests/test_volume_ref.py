@@ -259,6 +259,57 @@ def test_edge_target_error_and_unsorted_xs():
 
 
 # ---------------------------------------------------------------------------------------------
+# Spot (the radial profile as a render sees it)
+
+
+def test_circle_overlap_limits_and_area():
+    """Disjoint 0, contained pi min(R, a)^2, and partial overlaps against the fraction of a
+    uniform point set in both circles (4 binomial standard errors)."""
+    np.testing.assert_allclose(V.circle_overlap([1.0, 1.0, 3.0, 0.0], 0.5, [1.6, 0.3, 1.0, 0.2]),
+                               [0.0, math.pi * 0.25, math.pi * 0.25, 0.0], atol=1e-15)
+    assert V.circle_overlap(0.5, 2.0, 1.0) == pytest.approx(math.pi * 0.25, rel=1e-15)
+    pts = np.random.default_rng(0).random((400_000, 2)) * 8 - 4
+    for R, a, d in ((1.0, 0.5, 1.2), (2.0, 0.7, 2.5), (1.0, 1.0, 1.9), (1.5, 1.2, 0.6)):
+        both = ((pts ** 2).sum(1) < R * R) & (((pts - [d, 0.0]) ** 2).sum(1) < a * a)
+        p = both.mean()
+        assert abs(float(V.circle_overlap(R, a, d)) - 64 * p) < K * 64 * math.sqrt(p * (1 - p) / pts.shape[0])
+
+
+def test_spot_conserves_the_disc_power_and_its_plateau_is_the_sheet():
+    """Exact identities on the same paths: the annulus means times their areas add up to the
+    disc's area times the uniformly lit radiance (every contribution lands somewhere), and that
+    plateau is the sheet's (same seed, same walk)."""
+    edges = np.concatenate([[0.0], np.geomspace(0.05, 400.0, 40)])
+    r = V.spot([0.9, 0.5], [0.1, 0.4], 0.5, 1.3, 0.7, edges, n_paths=4000, seed=6)
+    area = math.pi * np.diff(edges ** 2)
+    np.testing.assert_allclose((r.radiance * area).sum(1), math.pi * 0.49 * r.plateau, rtol=1e-12)
+    s = V.sheet([0.9, 0.5], [0.1, 0.4], 0.5, 1.3, math.inf, (0, 0, 1), (0, 0, 1), n_paths=4000, seed=6)
+    np.testing.assert_allclose(r.plateau, s.radiance, rtol=1e-12)
+
+
+def test_spot_is_chandrasekhar_inside_and_the_shadow_edge_at_its_rim():
+    """A disc of radius 500 mfp: annuli well inside see the uniformly lit half-space (Chandrasekhar
+    at normal light and view, eta 1, isotropic), and an annulus just outside its rim the shadow
+    side of a straight edge at the same distance (``shadow_edge``, another estimator; the rim's
+    curvature changes it by about distance / radius, 1e-3)."""
+    a = 500.0
+    edges = np.array([0.0, 10.0, a + 0.4, a + 0.6])
+    r = V.spot(0.9, 0.1, 0.0, 1.0, a, edges, n_paths=20_000, seed=12)
+    inner = dipole_ref.plane_radiance_isotropic(0.9, 1.0, 1.0)
+    _close(r.radiance[0, 0], r.radiance_err[0, 0], inner)
+    e = V.shadow_edge(0.9, 0.1, 0.0, 1.0, (0, 0, 1), [-0.5], n_paths=20_000, seed=13)
+    want = e.radiance[0, 0]
+    assert abs(r.radiance[0, 2] - want) < K * math.hypot(r.radiance_err[0, 2], e.radiance_err[0, 0]) + 2e-3 * want
+
+
+def test_spot_refuses_bad_arguments():
+    with pytest.raises(ValueError):
+        V.spot(0.9, 0.1, 0.0, 1.0, 0.0, [0.0, 1.0])
+    with pytest.raises(ValueError):
+        V.spot(0.9, 0.1, 0.0, 1.0, 1.0, [1.0, 0.5])
+
+
+# ---------------------------------------------------------------------------------------------
 # Sphere (eta = 1)
 
 

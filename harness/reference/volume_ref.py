@@ -61,6 +61,13 @@ Estimators:
     check tallies the escaping power twice: analog (photons leaving) and the point estimator
     toward one uniformly random direction per collision times 4 pi.
 
+  * ``spot``: a half-space lit straight down only inside a disc of radius a, seen straight down:
+    the mean of pi L / E over annuli about the disc. With the shadow edge's pencil-response
+    estimator, a contribution landing at lateral offset Delta is seen from the annulus's points
+    P whose entry P - Delta is in the disc, area(annulus & disc moved by Delta) / area(annulus):
+    exact, no bins in Delta. Outside the disc this is the medium's radial profile as a render
+    shows it (single scattering under normal light and view stays under the disc).
+
   * ``sphere_intensity`` (any eta): the radiant intensity toward the view by analog escape.
     Photons enter over the disc the light sees (weight 1 - F), refract in, walk, and refract
     out where they leave. By symmetry about the light's axis the intensity depends only on the
@@ -93,7 +100,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 __all__ = ["EdgeResult", "SheetResult", "SphereResult", "fresnel", "hg_density", "hg_sample_cos", "deflect",
-           "image_axes", "shadow_edge", "sheet", "sphere", "SphereIntensityResult", "sphere_intensity", "SKIN1",
+           "image_axes", "shadow_edge", "sheet", "sphere", "SphereIntensityResult", "sphere_intensity", "SpotResult",
+           "spot", "circle_overlap", "SKIN1",
            "main"]
 
 #: Russian roulette: paths whose weight falls below this survive with ROULETTE_SURVIVAL.
@@ -925,6 +933,118 @@ def sphere_intensity(sigma_s, sigma_a, g: float, eta: float, radius: float, ligh
 
 # ---------------------------------------------------------------------------------------------
 # Command line
+
+
+# ---------------------------------------------------------------------------------------------
+# Scene 5: a spot (the radial profile as a render sees it)
+
+
+def circle_overlap(R, a: float, d):
+    """Area of the intersection of a circle of radius ``R`` at the origin with one of radius
+    ``a`` whose centre is ``d`` away (numpy broadcasting over R and d; R = 0 gives 0)."""
+    R, d = np.broadcast_arrays(np.asarray(R, dtype=float), np.asarray(d, dtype=float))
+    out = np.zeros(R.shape)
+    small = np.minimum(R, a)
+    inside = d <= np.abs(R - a)
+    out[inside] = math.pi * small[inside] ** 2
+    part = ~inside & (d < R + a)
+    if part.any():
+        Rp, dp = R[part], d[part]
+        c1 = np.clip((dp * dp + Rp * Rp - a * a) / (2.0 * dp * Rp), -1.0, 1.0)
+        c2 = np.clip((dp * dp + a * a - Rp * Rp) / (2.0 * dp * a), -1.0, 1.0)
+        k = (-dp + Rp + a) * (dp + Rp - a) * (dp - Rp + a) * (dp + Rp + a)
+        out[part] = Rp * Rp * np.arccos(c1) + a * a * np.arccos(c2) - 0.5 * np.sqrt(np.maximum(k, 0.0))
+    return out
+
+
+@dataclass
+class SpotResult:
+    """pi L / E averaged over annuli about a lit disc, per channel (rows) and annulus (columns)."""
+
+    r_edges: np.ndarray          # (bins + 1,) mm
+    radiance: np.ndarray         # (channels, bins): the annulus's mean of pi L / E
+    radiance_err: np.ndarray
+    plateau: np.ndarray          # (channels,) pi L / E under uniform light (the whole surface lit)
+    plateau_err: np.ndarray
+    spot_radius: float
+    n_paths: np.ndarray
+    collisions: np.ndarray
+    seconds: np.ndarray
+
+
+def spot(sigma_s, sigma_a, g: float, eta: float, spot_radius: float, r_edges, *, n_paths: int = 100_000,
+         seed: int = 1, batch: int = 20_000) -> SpotResult:
+    """The half-space z < 0 lit straight from above (E = 1) only inside the disc of radius
+    ``spot_radius`` (mm) about the origin (a black plate with a round hole just above: it blocks
+    light, not the view), seen straight down: pi L / E averaged over each annulus
+    r_edges[k] <= |P| < r_edges[k + 1]. Outside the disc this is the radial profile of the
+    medium's multiple scattering as a render shows it (single scattering under normal light and
+    view leaves where the light entered), convolved with the disc.
+
+    Estimator (exact, as ``shadow_edge``): each photon enters at the origin and each collision's
+    point estimate toward the view lands at the lateral offset Delta; a point P sees it when its
+    own entry P - Delta is in the disc, so over the annulus the contribution counts
+    area(annulus & disc moved by Delta) / area(annulus) (``circle_overlap``), no bins in Delta."""
+    ss, sa = _channels(sigma_s, sigma_a)
+    _check_g_eta(g, eta)
+    if not spot_radius > 0:
+        raise ValueError("spot_radius must be > 0")
+    edges = np.asarray(r_edges, dtype=float)
+    if edges.ndim != 1 or edges.size < 2 or not (np.diff(edges) > 0).all() or edges[0] < 0:
+        raise ValueError("r_edges: increasing radii >= 0, at least two")
+    nb = edges.size - 1
+    ann = math.pi * (edges[1:] ** 2 - edges[:-1] ** 2)
+    light = np.array([0.0, 0.0, 1.0])
+    (dx, dy, dz), cos_i, t_in = _plane_entry(light, eta)
+    scale = cos_i * t_in
+    pv = _plane_view(light, eta)
+    geom = _Slab(math.inf)
+    seqs = np.random.SeedSequence(seed).spawn(ss.size)
+    nch = ss.size
+    rad, rad_e = np.zeros((nch, nb)), np.zeros((nch, nb))
+    plat, plat_e = np.zeros(nch), np.zeros(nch)
+    npaths = np.zeros(nch, dtype=np.int64)
+    ncoll = np.zeros(nch, dtype=np.int64)
+    secs = np.zeros(nch)
+    for c in range(nch):
+        t0 = time.perf_counter()
+        rng = np.random.default_rng(seqs[c])
+        st = ss[c] + sa[c]
+        terms, _ = _plane_terms(pv, st, math.inf)
+        prof = _Stats((nb,))
+        total = _Stats()
+        coll = [0]
+
+        def one_batch(m):
+            acc = _Collector()
+            tot = _Collector()
+
+            def on_collision(pid, x, y, z, ux, uy, uz, w):
+                for val, v in _contrib(pv, terms, st, math.inf, g, z, ux, uy, uz, w):
+                    d = np.hypot(x + pv.wx * v / pv.mu, y + pv.wy * v / pv.mu)
+                    tot.add(pid, val)
+                    near = d < edges[-1] + spot_radius
+                    if not near.any():
+                        continue
+                    dn, vn, pn = d[near], val[near], pid[near]
+                    cover = circle_overlap(edges[None, :], spot_radius, dn[:, None])  # (n, nb + 1)
+                    share = (cover[:, 1:] - cover[:, :-1]) / ann[None, :]
+                    acc.add((pn[:, None] * nb + np.arange(nb)[None, :]).ravel(), (vn[:, None] * share).ravel())
+
+            start = (np.zeros(m), np.zeros(m), np.zeros(m), np.full(m, dx), np.full(m, dy), np.full(m, dz),
+                     np.ones(m))
+            wk = _walk(rng, start, ss[c], sa[c], g, eta, geom, 2, on_collision)
+            coll[0] += wk.collisions
+            prof.add(acc.totals(m * nb).reshape(m, nb) * scale)
+            total.add(tot.totals(m) * scale)
+
+        npaths[c] = _run_batches(n_paths, batch, None, n_paths, one_batch, lambda: (0.0, 0.0))
+        rad[c], rad_e[c] = prof.mean, prof.err
+        plat[c], plat_e[c] = total.mean, total.err
+        ncoll[c] = coll[0]
+        secs[c] = time.perf_counter() - t0
+    return SpotResult(r_edges=edges, radiance=rad, radiance_err=rad_e, plateau=plat, plateau_err=plat_e,
+                      spot_radius=float(spot_radius), n_paths=npaths, collisions=ncoll, seconds=secs)
 
 
 def _dir_from_angle(deg: float, sign: float = 1.0) -> np.ndarray:

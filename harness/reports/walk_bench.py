@@ -25,10 +25,16 @@ Scenes (lengths in mm, ``mm_per_unit 1``, parallel light of colour 1, orthograph
   ``volume_ref.sphere_intensity`` (analog escape through the refracting face; the image of a
   refracting sphere has no reference).
 
+* **rd**: the radial profile as rendered, each channel as a grey medium with ``mm_per_unit`` its
+  own transport mean free path (mfp'): a half-space lit straight down through a round hole of
+  radius 0.5 mfp', seen straight down; the means over 12 annuli from 1 to 30 mfp' against
+  ``volume_ref.spot``, judged where the reference's own error is below 2.5 %; the worst
+  relative error to 10 mfp' and from 10 to 30 (the issue asks 5 % and 10 %).
+
 Media: published coefficients (Jensen et al. 2001, Table 2: sigma_s', sigma_a in 1/mm), with
 ``anisotropy`` g and sigma_s = sigma_s' / (1 - g), and the ``ior`` of the run.
 
-    python -m harness.reports.walk_bench [--scenes edge,sheet,sphere] [--media Skin1,Ketchup]
+    python -m harness.reports.walk_bench [--scenes edge,sheet,sphere,rd] [--media Skin1,Ketchup]
         [--eta 1.0,1.3] [--g 0,0.9] [--samples 64] [--paths 40000] [--quick]
 """
 
@@ -292,6 +298,93 @@ def sphere_rows(args, fork) -> list[dict]:
     return rows
 
 
+SPOT = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location <{half}, {half}, 80> direction <0, 0, -1> right <{size}, 0, 0> up <0, {size}, 0> }}
+light_source {{ <0, 0, 1000> rgb 1 parallel point_at <0, 0, 0> }}
+difference {{
+  box {{ <-{block}, -{block}, 0.002>, <{block}, {block}, 0.003> }}
+  cylinder {{ <0, 0, 0>, <0, 0, 1>, {spot} }}
+  pigment {{ rgb 0 }} finish {{ ambient 0 diffuse 0 }} no_image
+}}
+box {{ <-{block}, -{block}, -{block}>, <{block}, {block}, 0> texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} }} }} }}
+"""
+
+#: The radial profile's range and bins, in transport mean free paths of each channel: 12 annuli
+#: from 1 to 30, judged (as the issue asks) to 10 and to 30.
+RD_MFP = np.geomspace(1.0, 30.0, 13)
+#: An annulus is compared only where the reference's own relative error is below this (its
+#: noise grows with r: a channel of low albedo is 1e-10 of its peak long before 30 mean free
+#: paths).
+RD_REF_NOISE = 0.025
+#: The rd scene's sample spacing, in mean free paths: 16 samples in the lit hole.
+RD_SPACING = 0.25
+
+
+def annulus_means(img: np.ndarray, size: float, edges: np.ndarray, sub: int = 4) -> np.ndarray:
+    """Means of ``img`` (rows from y = size down to 0, columns from x = 0 to size: one quadrant
+    about the spot) over the annuli ``edges`` (mm), each pixel weighted by the fraction of its
+    area inside (``sub`` x ``sub`` points per pixel)."""
+    n = img.shape[0]
+    px = size / n
+    off = (np.arange(sub) + 0.5) / sub
+    cx = (np.arange(n)[:, None] + off[None, :]).ravel() * px          # sub-points along x
+    cy = size - (np.arange(n)[:, None] + off[None, :]).ravel() * px   # along y, row 0 at the top
+    rr = np.hypot(cx[None, :], cy[:, None]).reshape(n, sub, n, sub)   # (row, sub, col, sub)
+    out = np.zeros((img.shape[2], edges.size - 1))
+    for k in range(edges.size - 1):
+        w = ((rr >= edges[k]) & (rr < edges[k + 1])).mean((1, 3))
+        out[:, k] = (img * w[..., None]).sum((0, 1)) / w.sum() if w.sum() > 0 else np.nan
+    return out
+
+
+def rd_rows(args, fork) -> list[dict]:
+    """The radial profile as rendered, per channel in its own transport mean free paths (mfp'):
+    each channel is rendered as a grey medium of its coefficients with ``mm_per_unit`` = its
+    mfp', so every scene is the same in units: a block 90 x 90 x 45 lit straight down through a
+    round hole of radius 0.5 (a black ``no_image`` plate), seen straight down, one quadrant out to
+    30 (``sample_spacing`` RD_SPACING: the automatic spacing, half a mean free path, would put a
+    few samples in the hole). Annulus means (RD_MFP) against ``volume_ref.spot``."""
+    rows = []
+    n = args.rd_pixels
+    size, a, block = float(RD_MFP[-1]), 0.5, 45.0
+    for name in args.media:
+        for eta in args.eta:
+            for g in args.g:
+                ss, sa = coefficients(name, g)
+                sp, _ = (np.array(v, float) for v in MEDIA[name])
+                mfp = 1.0 / (sp + sa)
+                row = dict(scene="rd", medium=name, eta=eta, g=g, seconds=0.0, ref_seconds=0.0, channels=[])
+                for c in range(3):
+                    grey = lambda v: f"<{v:.10g}, {v:.10g}, {v:.10g}>"
+                    dipole = (f"sigma_s {grey(ss[c])} sigma_a {grey(sa[c])} anisotropy {g} ior {eta} "
+                              f"mm_per_unit {mfp[c]:.10g} sample_spacing {RD_SPACING}")
+                    text = SPOT.format(half=size / 2, size=size, block=block, spot=a, dipole=dipole)
+                    img, sec, _ = render(text, n, n, fork)
+                    row["seconds"] += sec
+                    t0 = time.perf_counter()
+                    ref = volume_ref.spot([ss[c]], [sa[c]], g, eta, a * mfp[c], RD_MFP * mfp[c], n_paths=args.paths,
+                                          seed=23 + c)
+                    row["ref_seconds"] += time.perf_counter() - t0
+                    got = annulus_means(img[..., :1], size, RD_MFP)[0]
+                    want, err = ref.radiance[0], ref.radiance_err[0]
+                    with np.errstate(divide="ignore", invalid="ignore"):  # annuli no reference path reached
+                        judged = err < RD_REF_NOISE * want
+                        rel = got / want - 1
+                        noise = err / want
+                    mid = np.sqrt(RD_MFP[:-1] * RD_MFP[1:])
+                    near, far = judged & (mid <= 10), judged & (mid > 10)
+                    row["channels"].append(dict(
+                        r_mfp=mid.round(2).tolist(), rel=rel.round(4).tolist(), ref_noise=noise.round(4).tolist(),
+                        judged=judged.tolist(),
+                        worst_to_10=float(np.abs(rel[near]).max()) if near.any() else None,
+                        worst_to_30=float(np.abs(rel[far]).max()) if far.any() else None,
+                        judged_to=float(mid[judged].max()) if judged.any() else None))
+                rows.append(row)
+                report(row)
+    return rows
+
+
 def report(row: dict) -> None:
     head = f"{row['scene']:6s} {row['medium']:8s} eta {row['eta']:.1f} g {row['g']:.1f}"
     if row["scene"] == "edge":
@@ -312,6 +405,11 @@ def report(row: dict) -> None:
                 f"{t['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
                 f"{w['seconds']:6.2f} s (per walk {w['per_walk']:.2f}, 1 % noise per pixel in {w['to_1pc']:.3g} CPU s) | auto ({row['auto']['chose']}) {100 * row['auto']['error']:6.2f} % "
                 f"{row['auto']['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
+    elif row["scene"] == "rd":
+        pct = lambda v: "  n/a" if v is None else f"{100 * v:5.1f}"
+        body = " | ".join(f"{'RGB'[c]}: to 10 mfp {pct(ch['worst_to_10'])} %, 10-30 {pct(ch['worst_to_30'])} % "
+                          f"(judged to {ch['judged_to'] or 0:.1f} mfp)" for c, ch in enumerate(row["channels"]))
+        body = f"| {row['seconds']:6.2f} s | " + body
     else:
         head += f" R {row['lengths']:4.1f} ld"
         p, d, t, w = row["profile"], row["directional"], row["traced"], row["walk"]
@@ -341,6 +439,7 @@ def main(argv=None) -> int:
     ap.add_argument("--radii", default="1,3,10", help="sphere radii in diffusion lengths")
     ap.add_argument("--samples", type=int, default=512, help="random walks per pixel (spheres: a quarter, at 16 pixels per reference pixel)")
     ap.add_argument("--paths", type=int, default=200000, help="reference paths per channel")
+    ap.add_argument("--rd-pixels", type=int, default=512, help="the rd scene's quadrant, pixels across")
     ap.add_argument("--quick", action="store_true", help="one medium, eta, g and angle: a smoke run")
     ap.add_argument("--fork", default="fork")
     args = ap.parse_args(argv)
@@ -364,6 +463,8 @@ def main(argv=None) -> int:
             sheet_rows(args, args.fork)
         elif s == "sphere":
             sphere_rows(args, args.fork)
+        elif s == "rd":
+            rd_rows(args, args.fork)
         else:
             ap.error(f"--scenes: unknown scene {s!r}")
     return 0
