@@ -363,7 +363,7 @@ def rd_rows(args, fork) -> list[dict]:
                     img, sec, _ = render(text, n, n, fork)
                     row["seconds"] += sec
                     t0 = time.perf_counter()
-                    ref = volume_ref.spot([ss[c]], [sa[c]], g, eta, a * mfp[c], RD_MFP * mfp[c], n_paths=args.paths,
+                    ref = volume_ref.spot([ss[c]], [sa[c]], g, eta, a * mfp[c], RD_MFP * mfp[c], n_paths=args.rd_paths,
                                           seed=23 + c)
                     row["ref_seconds"] += time.perf_counter() - t0
                     got = annulus_means(img[..., :1], size, RD_MFP)[0]
@@ -430,7 +430,7 @@ def floats(text: str) -> list[float]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--scenes", default="edge,sheet,sphere")
+    ap.add_argument("--scenes", default="edge,sheet,sphere,rd")
     ap.add_argument("--media", default="Skin1,Ketchup")
     ap.add_argument("--eta", default="1.0,1.3")
     ap.add_argument("--g", default="0,0.9")
@@ -440,6 +440,7 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=512, help="random walks per pixel (spheres: a quarter, at 16 pixels per reference pixel)")
     ap.add_argument("--paths", type=int, default=200000, help="reference paths per channel")
     ap.add_argument("--rd-pixels", type=int, default=512, help="the rd scene's quadrant, pixels across")
+    ap.add_argument("--rd-paths", type=int, default=40000, help="the rd scene's reference paths per channel")
     ap.add_argument("--quick", action="store_true", help="one medium, eta, g and angle: a smoke run")
     ap.add_argument("--fork", default="fork")
     args = ap.parse_args(argv)

@@ -1,0 +1,54 @@
+"""The radial profile as rendered (issue 31's "Rd(r) as rendered"): a half-space of Jensen's Skin1
+red channel (sigma_s' 0.74, sigma_a 0.032 /mm, ior 1.3) lit straight down through a round hole of
+radius 0.5 mfp', seen straight down, the means of the rendered pi L over annuli from 1 to 10
+mfp' against `volume_ref.spot` (harness.reference, a numpy photon tracer sharing no code with
+the library), in the annuli where the reference's own error is below 2.5 %.
+
+Tolerances fixed before measuring. The exact profile's error there is set by its exit
+distribution, which is that of uniform light at every distance (shading/DIPOLE.md 10.7): at
+normal view it is too bright near the hole and darker further out. EXACT_RD_TO_10 holds today's
+value with room for the reference's noise (2.5 % per annulus); the issue's goal is 5 %. The
+control: the classical dipole's profile is far off in the same annuli.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.core import runner
+from harness.reference import volume_ref
+from harness.reports import walk_bench as wb
+
+#: Worst |render / reference - 1| over the judged annuli to 10 mfp' (measured 0.080).
+EXACT_RD_TO_10 = 0.12
+#: The same with `profile dipole`: at least this far off (measured 0.57).
+DIPOLE_RD_TO_10 = 0.3
+
+
+def _worst_to_10(extra: str) -> float:
+    ss, sa = wb.coefficients("Skin1", 0.0)
+    sp = np.array(wb.MEDIA["Skin1"][0])
+    mfp = float(1.0 / (sp[0] + sa[0]))
+    grey = f"<{ss[0]:.10g}, {ss[0]:.10g}, {ss[0]:.10g}>", f"<{sa[0]:.10g}, {sa[0]:.10g}, {sa[0]:.10g}>"
+    dipole = (f"sigma_s {grey[0]} sigma_a {grey[1]} anisotropy 0 ior 1.3 mm_per_unit {mfp:.10g} "
+              f"sample_spacing {wb.RD_SPACING} {extra}")
+    size = float(wb.RD_MFP[-1])
+    text = wb.SPOT.format(half=size / 2, size=size, block=45.0, spot=0.5, dipole=dipole)
+    r = runner.render(text, "fork", width=256, height=256, float_exr=True, threads=2)
+    img = r.image[..., :3].astype(np.float64)
+    assert np.isfinite(img).all()
+    edges = wb.RD_MFP[wb.RD_MFP <= 10.0]  # the annuli from 1 to 9.65 mfp'
+    got = wb.annulus_means(img[..., :1], size, edges)[0]
+    ref = volume_ref.spot([ss[0]], [sa[0]], 0.0, 1.3, 0.5 * mfp, edges * mfp, n_paths=40_000, seed=23)
+    want, err = ref.radiance[0], ref.radiance_err[0]
+    judged = err < wb.RD_REF_NOISE * want
+    assert judged.sum() >= 6, (want, err)
+    return float(np.abs(got[judged] / want[judged] - 1).max())
+
+
+def test_exact_profile_as_rendered_follows_exact_transport():
+    assert _worst_to_10("") <= EXACT_RD_TO_10
+
+
+def test_control_the_dipole_profile_does_not():
+    assert _worst_to_10("profile dipole") >= DIPOLE_RD_TO_10
