@@ -84,3 +84,40 @@ def test_recording_sees_only_its_own_thread(monkeypatch):
     for k, seen in enumerate(got):
         assert [s for s, _ in seen] == [f"{k}-{i}" for i in range(50)]
     assert runner.render is orig  # unwrapped when the last block ends
+
+
+def _geometry_rows():
+    """walk_bench rows of each scene the report's geometry section draws (synthetic numbers)."""
+    xs = list(np.linspace(-4.75, 4.75, 20))
+    prof = [list(np.clip((np.array(xs) + 5) / 10, 0, 1))] * 3
+    method = lambda err, **kw: {"max_diff": err, "plateau": 0.01, "edge": [0.5] * 3, "seconds": 0.2,
+                                "profile": prof, **kw}
+    edge = {"scene": "edge", "medium": "Skin1", "eta": 1.3, "g": 0.0, "angle": 45, "xs": xs, "ref_profile": prof,
+            "profile": method(0.2), "directional": method(0.03), "walk": method(0.05),
+            "auto": method(0.2, chose="profile")}
+    img = (np.ones((3, 4, 4)) * 0.3).tolist()
+    sm = lambda flux, **kw: {"flux": flux, "rms": 0.1, "seconds": 0.1, "image": img, **kw}
+    sphere = {"scene": "sphere", "medium": "Skin1", "eta": 1.0, "g": 0.0, "lengths": 3.0, "ref_image": img,
+              "profile": sm(0.06), "directional": sm(0.09), "traced": sm(0.04), "walk": sm(0.01),
+              "auto": sm(0.01, chose="walk")}
+    ch = {"r_mfp": [1.2, 2.0, 11.0], "rel": [0.1, 0.05, 0.5], "judged": [True, True, False],
+          "worst_to_10": 0.1, "worst_to_30": None, "judged_to": 2.0, "ref_noise": [0.01, 0.02, 0.1]}
+    rd = {"scene": "rd", "medium": "Skin1", "eta": 1.3, "g": 0.0, "seconds": 0.6, "channels": [ch] * 3}
+    return [edge, rd, sphere]
+
+
+def test_geometry_section_summary_and_plots(tmp_path):
+    from harness.reports import walk_bench
+    rows = _geometry_rows()
+    table = walk_bench.summary(rows)
+    # every method of the edge and the sphere once, and the Rd row
+    assert len(table) == 4 + 5 + 1
+    assert {r["method"] for r in table} >= {"profile (default)", "random_walk", "method auto"}
+    auto = [r for r in table if r["method"] == "method auto"]
+    assert any("chose the walk" in r["other"] for r in auto) and any("chose the profile" in r["other"] for r in auto)
+    assert [r["error"] for r in table if r["scene"].startswith("Rd(r)")] == [0.1]
+    for name, fn in (("e.png", walk_bench.plot_edges), ("s.png", walk_bench.plot_spheres), ("r.png", walk_bench.plot_rd)):
+        path = fn(rows, tmp_path / name)
+        assert path is not None and (tmp_path / name).read_bytes().startswith(b"\x89PNG")
+    assert walk_bench.plot_spheres([rows[0]], tmp_path / "none.png") is None  # no sphere with an image
+    json.dumps(report.jsonable(rows), allow_nan=False)

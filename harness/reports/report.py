@@ -24,6 +24,9 @@ return:
   speed-vs-error curve;
 * **subsurface** (:mod:`harness.reports.ss_profiles`): the exact profile and the dipole against the
   harness's Monte Carlo over alpha' x g x eta (totals, Rd(r)), and the rendered slab's radiance;
+* **geometry** (:func:`harness.reports.walk_bench.report_rows`): issue 31's scenes, Skin1: a shadow
+  edge under slanted light, a sphere with its image beside the reference's, Rd(r) as rendered; the
+  profile, the random walk and ``method auto`` against the harness's volumetric reference;
 * **gonioreflectometer round trip** (:mod:`harness.reports.gonio`) and the **stability suite**
   (:mod:`harness.reports.stability`), their tables as the tests print them.
 
@@ -93,7 +96,7 @@ QUICK = Settings(quick=True, model_size=64, table_size=96, rounds=1, dipole_widt
                  gonio_grid="quick", edge_quick=True, ss_alphas=(0.5, 0.99), ss_seconds=3.0,
                  layouts=(("isotropic", 2.0), ("isotropic", 1.0), ("halfdiff", (128, 64, 32)),
                           ("halfdiff", (256, 128, 32))))
-SECTIONS = ("models", "tables", "layouts", "dipole", "edge", "subsurface", "gonio", "stability")
+SECTIONS = ("models", "tables", "layouts", "dipole", "edge", "subsurface", "geometry", "gonio", "stability")
 
 _rec_local = threading.local()
 _rec_lock = threading.Lock()
@@ -618,6 +621,11 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
         from harness.reports import ss_profiles
         ss_rows = ss_profiles.grid(st.ss_alphas, seconds=st.ss_seconds, log=log)
         ss_renders = ss_profiles.render_rows(ss_rows, log=log)
+    geo_rows = []
+    if "geometry" in sections:
+        from harness.reports import walk_bench
+        log("subsurface in real geometry (walk_bench): edge, Rd(r), sphere")
+        geo_rows = walk_bench.report_rows(st.quick)
     gonio_points = (gonio.measure(gonio.FULL if st.gonio_grid == "full" else gonio.QUICK, progress=st.progress)
                     if "gonio" in sections else [])
     stab = stability.run(log=log, progress=st.progress) if "stability" in sections else []
@@ -741,6 +749,26 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
                                    "camera at the view cosine; pixel = pi L against the reference's next-event radiance "
                                    "times the entering Fresnel factor. 'exact' is the default finish, 'dipole' `profile "
                                    "dipole` (single scattering off, its default)."))
+    if geo_rows:
+        from harness.reports import walk_bench
+        images = [(title, png) for title, png in (
+            ("shadow edge under slanted light: every method against the reference",
+             walk_bench.plot_edges(geo_rows, out_dir / "geometry_edge.png")),
+            ("sphere: the reference and each method side by side, and their errors",
+             walk_bench.plot_spheres(geo_rows, out_dir / "geometry_sphere.png")),
+            ("Rd(r) as rendered", walk_bench.plot_rd(geo_rows, out_dir / "geometry_rd.png"))) if png]
+        pages.append(Section("Subsurface in real geometry: profile, random walk and auto vs exact transport "
+                             "(issue 31; harness.reports.walk_bench)", walk_bench.summary(geo_rows), anchor="geometry",
+                             notes="Jensen's Skin1 (g 0, mm_per_unit 1), every method at its defaults but the walk's "
+                                   "samples, against harness.reference.volume_ref (a numpy photon tracer sharing no "
+                                   "code with the library). Shadow edge: a block under parallel light past a black "
+                                   "plate's edge, ior 1.3, row-averaged profile, max |error| as a fraction of the lit "
+                                   "plateau. Sphere: radius 3 diffusion lengths, ior 1, light from normalize(1, 0.5, 1), "
+                                   "camera from +z: flux and per-pixel rms. Rd(r): a half-space lit through a hole of "
+                                   "radius 0.5 mfp', annulus means 1-30 mfp' (each channel in its own). Trace time: "
+                                   "POV's own, two threads. python -m harness.reports.walk_bench runs the full grid "
+                                   "(every preset, ior, g, sheets).",
+                             images=images))
     if gonio_points:
         gpng = gonio.plot(gonio_points, out_dir / "gonio.png")
         pages.append(Section("Gonioreflectometer round trip (harness.reports.gonio)", gonio.summary(gonio_points),
@@ -763,6 +791,7 @@ def build(out_dir: Path, st: Settings, sections: Sequence[str] = SECTIONS,
     page = write_page(out_dir / "index.html", "povray-brdf: finishes against their expectations", pages, notes)
     dump = {"settings": dataclasses.asdict(st), "wall_s": wall, "entries": entries, "layouts": layout_rows,
             "edge": edges, "subsurface": [dataclasses.asdict(r) for r in ss_rows], "subsurface_renders": ss_renders,
+            "geometry": geo_rows,
             "gonio": [dataclasses.asdict(p) for p in gonio_points],
             "stability": [dataclasses.asdict(r) for r in stab]}
     (out_dir / "report.json").write_text(json.dumps(jsonable(dump), indent=1, allow_nan=False))

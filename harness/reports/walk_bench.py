@@ -45,6 +45,7 @@ import math
 import re
 import sys
 import time
+from typing import Optional, Sequence
 
 import numpy as np
 
@@ -162,7 +163,7 @@ def edge_rows(args, fork) -> list[dict]:
                         row[method] = dict(max_diff=float(diff.max()),
                                            plateau=float(np.abs(prof[:, -1] / ref.radiance[:, -1] - 1).max()),
                                            edge=(prof[:, nx // 2] / plateau).round(3).tolist(), seconds=sec,
-                                           **chosen)
+                                           profile=(prof / plateau[:, None]).round(5).tolist(), **chosen)
                         if method == "walk":
                             # the walk's own noise: pixel scatter in the lit quarter (x > 2.25 mm),
                             # its time per walk from the whole image
@@ -175,6 +176,8 @@ def edge_rows(args, fork) -> list[dict]:
                             e = row["profile"]["max_diff"]
                             row[method]["equal_error_seconds"] = (sec / args.samples) * (per_walk / (e * math.sqrt(ny))) ** 2
                     row["ref_edge"] = (ref.radiance[:, nx // 2] / plateau).round(3).tolist()  # x = +0.25 mm
+                    row["xs"] = xs.tolist()
+                    row["ref_profile"] = (ref.radiance / plateau[:, None]).round(5).tolist()  # per channel / plateau
                     rows.append(row)
                     report(row)
     return rows
@@ -287,12 +290,14 @@ def sphere_rows(args, fork) -> list[dict]:
                 rel = small[ch][use] / ref.image[ch][use] - 1
                 rms.append(float(np.sqrt(np.mean(rel ** 2))))
             row[method] = dict(flux=float(np.abs(flux / ref.flux - 1).max()), rms=max(rms) if rms else None,
-                               seconds=sec, **chosen)
+                               seconds=sec, image=small.round(6).tolist(), **chosen)
         noise = []
         for ch in range(3 if eta == 1.0 else 0):
             use = inside & (ref.image[ch] > 0.1 * ref.image[ch].max())
             noise.append(float(np.sqrt(np.mean((ref.image_err[ch][use] / ref.image[ch][use]) ** 2))))
         row["ref_pixel_noise"] = max(noise) if noise else None
+        if eta == 1.0:
+            row["ref_image"] = np.asarray(ref.image).round(6).tolist()  # (3, n, n), pi L per pixel
         rows.append(row)
         report(row)
     return rows
@@ -422,6 +427,149 @@ def report(row: dict) -> None:
                 f" | ref noise "
                 f"{100 * row['ref_noise']:.2f} % (flux), {pct(row['ref_pixel_noise'])} % (pixel rms)")
     print(head, body, flush=True)
+
+
+# ---------------------------------------------------------------- the report's section
+
+#: Methods as the report draws them: (row key, label, colour).
+METHODS = (("profile", "profile (default)", "tab:red"), ("directional", "directional on", "tab:orange"),
+           ("traced", f"single_scatter_samples {TRACED}", "tab:purple"), ("walk", "random_walk", "tab:blue"),
+           ("auto", "method auto", "tab:green"))
+
+
+def report_args(quick: bool, fork: str = "fork") -> argparse.Namespace:
+    """walk_bench's arguments for ``make report``: Skin1 at g 0; the edge (ior 1.3, light at 0, 45,
+    70 degrees; quick: 45), the sphere of radius 3 diffusion lengths at ior 1 (the reference has
+    its image there) and the rd scene at ior 1.3."""
+    return argparse.Namespace(media=["Skin1"], eta=[1.3], g=[0.0], angles=[45] if quick else [0, 45, 70],
+                              thickness=[1.0], radii=[3.0], samples=32 if quick else 128,
+                              paths=10_000 if quick else 40_000, rd_paths=10_000 if quick else 40_000,
+                              rd_pixels=128 if quick else 256, fork=fork)
+
+
+def report_rows(quick: bool = False, fork: str = "fork") -> list[dict]:
+    """The rows of the report's section (edge, sphere, rd), as the command line prints them."""
+    args = report_args(quick, fork)
+    rows = edge_rows(args, fork) + rd_rows(args, fork)
+    args.eta = [1.0]
+    return rows + sphere_rows(args, fork)
+
+
+def summary(rows: Sequence[dict]) -> list[dict]:
+    """One table row per scene and method: its error, what the error is, and the trace time."""
+    out = []
+    for row in rows:
+        where = f"{row['medium']}, ior {row['eta']:g}, g {row['g']:g}"
+        if row["scene"] == "edge":
+            case, err, what = f"shadow edge, light {row['angle']}°", "max_diff", "max |error| / plateau"
+        elif row["scene"] == "sphere":
+            case, err, what = f"sphere, radius {row['lengths']:g} diffusion lengths", "flux", "|flux error|"
+        elif row["scene"] == "rd":
+            worst = [c["worst_to_10"] for c in row["channels"] if c["worst_to_10"] is not None]
+            out.append({"scene": f"Rd(r) as rendered, {where}", "method": "profile (default)",
+                        "error": max(worst) if worst else None, "error is": "worst annulus 1-10 mfp'",
+                        "other": "", "trace s": row["seconds"]})
+            continue
+        else:
+            continue
+        for key, label, _ in METHODS:
+            m = row.get(key)
+            if not m:
+                continue
+            other = ""
+            if row["scene"] == "sphere" and m.get("rms") is not None:
+                other = f"pixel rms {100 * m['rms']:.1f} %"
+            if key == "auto":
+                other = (other + ", " if other else "") + f"chose the {m.get('chose', '?')}"
+            out.append({"scene": f"{case}, {where}", "method": label, "error": m[err], "error is": what,
+                        "other": other, "trace s": m["seconds"]})
+    return out
+
+
+def plot_edges(rows: Sequence[dict], path) -> Optional[object]:
+    """Each edge row: the green channel's profile across the edge (over the lit plateau) by every
+    method, the reference's points over them."""
+    from harness.core import plotting
+    edges = [r for r in rows if r["scene"] == "edge"]
+    if not edges:
+        return None
+    plt = plotting.pyplot()
+    fig, axes = plt.subplots(1, len(edges), figsize=(min(11.0, 3.6 * len(edges)), 3.4), dpi=100, squeeze=False)
+    for a, row in zip(axes[0], edges):
+        xs = np.array(row["xs"])
+        for key, label, colour in METHODS:
+            if key in row and "profile" in row[key]:
+                a.plot(xs, np.array(row[key]["profile"])[1], color=colour, lw=1.1, label=label,
+                       ls="--" if key == "auto" else "-")  # auto: one of the others, drawn over it
+        a.plot(xs, np.array(row["ref_profile"])[1], "k.", ms=4, label="reference (volume_ref)")
+        a.set(xlabel="x (mm), shadow for x < 0", ylabel="green / lit plateau",
+              title=f"{row['medium']}, ior {row['eta']:g}: light at {row['angle']}°")
+        a.grid(True, alpha=0.3)
+    axes[0][0].legend(fontsize=plotting.SMALL_PT, loc="upper left")
+    fig.tight_layout()
+    plotting.save(fig, path)
+    return path
+
+
+def plot_spheres(rows: Sequence[dict], path) -> Optional[object]:
+    """Each sphere row with a reference image (ior 1): the reference, then every method, side by
+    side on one exposure (the reference's brightest pixel), and below each its error."""
+    from harness.core import plotting
+    spheres = [r for r in rows if r["scene"] == "sphere" and "ref_image" in r]
+    if not spheres:
+        return None
+    plt = plotting.pyplot()
+    keys = [k for k, _, _ in METHODS if k in spheres[0]]
+    cols = 1 + len(keys)
+    fig, axes = plt.subplots(2 * len(spheres), cols, figsize=(min(11.0, 1.8 * cols), 3.8 * len(spheres)), dpi=100, squeeze=False)
+    for i, row in enumerate(spheres):
+        ref = np.array(row["ref_image"]).transpose(1, 2, 0)
+        scale = ref.max()
+        shown = [("reference", ref)] + [(dict((k, l) for k, l, _ in METHODS)[k],
+                                         np.array(row[k]["image"]).transpose(1, 2, 0)) for k in keys]
+        for j, (label, img) in enumerate(shown):
+            a = axes[2 * i][j]
+            a.imshow(np.clip(img / scale, 0, 1) ** (1 / 2.2), interpolation="nearest")
+            a.set_title(label, fontsize=plotting.SMALL_PT)
+            a.axis("off")
+            b = axes[2 * i + 1][j]
+            b.axis("off")
+            if j == 0:
+                b.text(0.5, 0.5, f"{row['medium']}, radius {row['lengths']:g} ld\nerror maps: green,\n"
+                       "(render − reference) / peak", ha="center", va="center", fontsize=plotting.SMALL_PT)
+                continue
+            im = b.imshow((img[..., 1] - ref[..., 1]) / ref[..., 1].max(), cmap="RdBu_r", vmin=-0.2, vmax=0.2,
+                          interpolation="nearest")
+        fig.colorbar(im, ax=list(axes[2 * i + 1][1:]), shrink=0.8)
+    plotting.save(fig, path)
+    return path
+
+
+def plot_rd(rows: Sequence[dict], path) -> Optional[object]:
+    """Each rd row: the rendered profile's relative error against the reference per channel, by
+    distance in that channel's mfp' (judged annuli filled, the others hollow)."""
+    from harness.core import plotting
+    rds = [r for r in rows if r["scene"] == "rd"]
+    if not rds:
+        return None
+    plt = plotting.pyplot()
+    fig, axes = plt.subplots(1, len(rds), figsize=(min(11.0, 5.0 * len(rds)), 3.6), dpi=100, squeeze=False)
+    for a, row in zip(axes[0], rds):
+        for c, colour in zip(range(3), ("tab:red", "tab:green", "tab:blue")):
+            ch = row["channels"][c]
+            r, rel, ok = (np.array(ch[k], dtype=float) for k in ("r_mfp", "rel", "judged"))
+            ok = ok.astype(bool)
+            a.plot(r[ok], 100 * rel[ok], "o-", color=colour, ms=4, label="RGB"[c])
+            a.plot(r[~ok], 100 * rel[~ok], "o", color=colour, ms=4, mfc="none")
+        for lim in (5, -5):
+            a.axhline(lim, color="0.5", ls="--", lw=0.8)
+        a.set(xscale="log", xlabel="r (mfp' of the channel)", ylabel="render / reference − 1 (%)",
+              title=f"Rd(r) as rendered: {row['medium']}, ior {row['eta']:g}", ylim=(-50, 100))
+        a.grid(True, which="both", alpha=0.25)
+        a.legend(fontsize=plotting.SMALL_PT)
+    fig.tight_layout()
+    plotting.save(fig, path)
+    return path
 
 
 def floats(text: str) -> list[float]:
