@@ -443,7 +443,7 @@ def report_args(quick: bool, fork: str = "fork") -> argparse.Namespace:
     its image there) and the rd scene at ior 1.3."""
     return argparse.Namespace(media=["Skin1"], eta=[1.3], g=[0.0], angles=[45] if quick else [0, 45, 70],
                               thickness=[1.0], radii=[3.0], samples=32 if quick else 128,
-                              paths=10_000 if quick else 40_000, rd_paths=10_000 if quick else 40_000,
+                              paths=10_000 if quick else 200_000, rd_paths=10_000 if quick else 40_000,
                               rd_pixels=128 if quick else 256, fork=fork)
 
 
@@ -486,15 +486,26 @@ def summary(rows: Sequence[dict]) -> list[dict]:
     return out
 
 
+def _panels(rows: Sequence[dict], scene: str, width: float, height: float):
+    """One figure with a panel (``width`` x ``height`` inches, the whole at most 11 wide) per
+    row of ``scene``: (figure, axes[0][k], those rows), or None when there is none."""
+    from harness.core import plotting
+    sel = [r for r in rows if r["scene"] == scene]
+    if not sel:
+        return None
+    fig, axes = plotting.pyplot().subplots(1, len(sel), figsize=(min(11.0, width * len(sel)), height), dpi=100,
+                                           squeeze=False)
+    return fig, axes, sel
+
+
 def plot_edges(rows: Sequence[dict], path) -> Optional[object]:
     """Each edge row: the green channel's profile across the edge (over the lit plateau) by every
     method, the reference's points over them."""
     from harness.core import plotting
-    edges = [r for r in rows if r["scene"] == "edge"]
-    if not edges:
+    panels = _panels(rows, "edge", 3.6, 3.4)
+    if panels is None:
         return None
-    plt = plotting.pyplot()
-    fig, axes = plt.subplots(1, len(edges), figsize=(min(11.0, 3.6 * len(edges)), 3.4), dpi=100, squeeze=False)
+    fig, axes, edges = panels
     for a, row in zip(axes[0], edges):
         xs = np.array(row["xs"])
         for key, label, colour in METHODS:
@@ -549,11 +560,10 @@ def plot_rd(rows: Sequence[dict], path) -> Optional[object]:
     """Each rd row: the rendered profile's relative error against the reference per channel, by
     distance in that channel's mfp' (judged annuli filled, the others hollow)."""
     from harness.core import plotting
-    rds = [r for r in rows if r["scene"] == "rd"]
-    if not rds:
+    panels = _panels(rows, "rd", 5.0, 3.6)
+    if panels is None:
         return None
-    plt = plotting.pyplot()
-    fig, axes = plt.subplots(1, len(rds), figsize=(min(11.0, 5.0 * len(rds)), 3.6), dpi=100, squeeze=False)
+    fig, axes, rds = panels
     for a, row in zip(axes[0], rds):
         for c, colour in zip(range(3), ("tab:red", "tab:green", "tab:blue")):
             ch = row["channels"][c]
