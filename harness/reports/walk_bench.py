@@ -322,13 +322,13 @@ RD_MFP = np.geomspace(1.0, 30.0, 13)
 #: noise grows with r: a channel of low albedo is 1e-10 of its peak long before 30 mean free
 #: paths).
 RD_REF_NOISE = 0.025
-#: The rd scene's sample spacing, in mean free paths: 16 samples in the lit hole.
+#: The rd scene's sample spacing, in mean free paths: about 13 samples in the lit hole.
 RD_SPACING = 0.25
 
 
 def annulus_means(img: np.ndarray, size: float, edges: np.ndarray, sub: int = 4) -> np.ndarray:
     """Means of ``img`` (rows from y = size down to 0, columns from x = 0 to size: one quadrant
-    about the spot) over the annuli ``edges`` (mm), each pixel weighted by the fraction of its
+    about the spot) over the annuli ``edges`` (the image's units), each pixel weighted by the fraction of its
     area inside (``sub`` x ``sub`` points per pixel)."""
     n = img.shape[0]
     px = size / n
