@@ -29,17 +29,14 @@ def _worst_to_10(extra: str) -> float:
     ss, sa = wb.coefficients("Skin1", 0.0)
     sp = np.array(wb.MEDIA["Skin1"][0])
     mfp = float(1.0 / (sp[0] + sa[0]))
-    grey = f"<{ss[0]:.10g}, {ss[0]:.10g}, {ss[0]:.10g}>", f"<{sa[0]:.10g}, {sa[0]:.10g}, {sa[0]:.10g}>"
-    dipole = (f"sigma_s {grey[0]} sigma_a {grey[1]} anisotropy 0 ior 1.3 mm_per_unit {mfp:.10g} "
-              f"sample_spacing {wb.RD_SPACING} {extra}")
     size = float(wb.RD_MFP[-1])
-    text = wb.SPOT.format(half=size / 2, size=size, block=45.0, spot=0.5, dipole=dipole)
+    text = wb.spot_scene(ss[0], sa[0], 0.0, 1.3, mfp, extra)
     r = runner.render(text, "fork", width=256, height=256, float_exr=True, threads=2)
     img = r.image[..., :3].astype(np.float64)
     assert np.isfinite(img).all()
     edges = wb.RD_MFP[wb.RD_MFP <= 10.0]  # the annuli from 1 to 9.65 mfp'
     got = wb.annulus_means(img[..., :1], size, edges)[0]
-    ref = volume_ref.spot([ss[0]], [sa[0]], 0.0, 1.3, 0.5 * mfp, edges * mfp, n_paths=40_000, seed=23)
+    ref = volume_ref.spot([ss[0]], [sa[0]], 0.0, 1.3, wb.RD_HOLE * mfp, edges * mfp, n_paths=40_000, seed=23)
     want, err = ref.radiance[0], ref.radiance_err[0]
     judged = err < wb.RD_REF_NOISE * want
     assert judged.sum() >= 6, (want, err)

@@ -324,6 +324,9 @@ RD_MFP = np.geomspace(1.0, 30.0, 13)
 RD_REF_NOISE = 0.025
 #: The rd scene's sample spacing, in mean free paths: about 13 samples in the lit hole.
 RD_SPACING = 0.25
+#: Its hole's radius and its block's half width (and depth), in mean free paths.
+RD_HOLE = 0.5
+RD_BLOCK = 45.0
 
 
 def annulus_means(img: np.ndarray, size: float, edges: np.ndarray, sub: int = 4) -> np.ndarray:
@@ -343,6 +346,16 @@ def annulus_means(img: np.ndarray, size: float, edges: np.ndarray, sub: int = 4)
     return out
 
 
+def spot_scene(sigma_s: float, sigma_a: float, g: float, eta: float, mfp: float, extra: str = "") -> str:
+    """The rd scene of one channel: a grey medium of these coefficients (1/mm) with
+    ``mm_per_unit`` its transport mean free path ``mfp`` (mm), so the scene is in mfp';
+    ``extra`` goes into the dipole block."""
+    grey = lambda v: f"<{v:.10g}, {v:.10g}, {v:.10g}>"
+    dipole = (f"sigma_s {grey(sigma_s)} sigma_a {grey(sigma_a)} anisotropy {g} ior {eta} "
+              f"mm_per_unit {mfp:.10g} sample_spacing {RD_SPACING}{' ' + extra if extra else ''}")
+    return SPOT.format(half=RD_MFP[-1] / 2, size=RD_MFP[-1], block=RD_BLOCK, spot=RD_HOLE, dipole=dipole)
+
+
 def rd_rows(args, fork) -> list[dict]:
     """The radial profile as rendered, per channel in its own transport mean free paths (mfp'):
     each channel is rendered as a grey medium of its coefficients with ``mm_per_unit`` = its
@@ -352,7 +365,7 @@ def rd_rows(args, fork) -> list[dict]:
     few samples in the hole). Annulus means (RD_MFP) against ``volume_ref.spot``."""
     rows = []
     n = args.rd_pixels
-    size, a, block = float(RD_MFP[-1]), 0.5, 45.0
+    size, a = float(RD_MFP[-1]), RD_HOLE
     for name in args.media:
         for eta in args.eta:
             for g in args.g:
@@ -361,11 +374,7 @@ def rd_rows(args, fork) -> list[dict]:
                 mfp = 1.0 / (sp + sa)
                 row = dict(scene="rd", medium=name, eta=eta, g=g, seconds=0.0, ref_seconds=0.0, channels=[])
                 for c in range(3):
-                    grey = lambda v: f"<{v:.10g}, {v:.10g}, {v:.10g}>"
-                    dipole = (f"sigma_s {grey(ss[c])} sigma_a {grey(sa[c])} anisotropy {g} ior {eta} "
-                              f"mm_per_unit {mfp[c]:.10g} sample_spacing {RD_SPACING}")
-                    text = SPOT.format(half=size / 2, size=size, block=block, spot=a, dipole=dipole)
-                    img, sec, _ = render(text, n, n, fork)
+                    img, sec, _ = render(spot_scene(ss[c], sa[c], g, eta, mfp[c]), n, n, fork)
                     row["seconds"] += sec
                     t0 = time.perf_counter()
                     ref = volume_ref.spot([ss[c]], [sa[c]], g, eta, a * mfp[c], RD_MFP * mfp[c], n_paths=args.rd_paths,

@@ -283,25 +283,25 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
         Rgb m = cloud.far_exitance_shifted(*profile_, x, n, r0, h, settings_.max_angle, cutoff(), &upstream, &visited);
         count_lookup(visited, false);
         m += upstream * cloud.level_near(level);
-        return curved(m, cloud, x, n) * model_->exit_factor(cos_o);
+        // (the curvature's window follows x's own level, not the shifted lookup's)
+        return curved(m, cloud, x, n, curving_ ? cloud.lookup_level(x) : 0) * model_->exit_factor(cos_o);
     }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
     Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited);
     count_lookup(visited, false);
     m += irradiance_here * cloud.level_near(level);
-    return curved(m, cloud, x, n) * model_->exit_factor(cos_o);
+    return curved(m, cloud, x, n, level) * model_->exit_factor(cos_o);
 }
 
-Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const {
+Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const {
     if (!curving_) return m;  // (off, or c 0 in every channel: no need for H)
     // over the base spacing's window whatever the lookup's level: a refined level's smaller
     // window would give a curvature that steps where the level does. The base is the view's
     // (h0), or the lookup's level where the sampler coarsened it (out of the image's reach):
     // the cloud's coarsest spacing, up to 8 h0, would put 64x the points in the window of a
     // point in view (a block reaching far beyond the camera rendered 18x slower).
-    const double H = cloud.mean_curvature_about(
-        x, n, std::max(cloud.view_spacing(), cloud.level_spacing(cloud.lookup_level(x))));
+    const double H = cloud.mean_curvature_about(x, n, std::max(cloud.view_spacing(), cloud.level_spacing(level)));
     Rgb out = m;
     for (int k = 0; k < 3; ++k)
         out[k] *= 1.0 + std::clamp(curvature_length_[k] * H, -kMaxCurvatureGain, kMaxCurvatureGain);
@@ -320,7 +320,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     Rgb m = slab_radiance(*slab.a, cloud, x, n, cos_o, irradiance_here, level, &visited);
     if (slab.b) m = m * (1.0 - slab.t) + slab_radiance(*slab.b, cloud, x, n, cos_o, irradiance_here, level, &visited) * slab.t;
     count_lookup(visited, true);
-    return curved(m, cloud, x, n);
+    return curved(m, cloud, x, n, level);
 }
 
 Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n,

@@ -210,8 +210,8 @@ private:
     Rgb curvature_length_;      // settings.curvature: c(eta, alpha') mfp' per channel, else 0
     bool curving_ = false;      // some channel's curvature_length_ is not 0
     // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window
-    // of its base spacing).
-    Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n) const;
+    // of its base spacing, or of x's lookup level `level` where that is coarser).
+    Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const;
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
     mutable std::mutex auto_mutex_;
