@@ -180,7 +180,7 @@ def main(brdftool, out):
     put(mdir, "bad-dim-standard-short.binary", struct.pack("<3i", 90, 90, 180) + ok[12:])
     put(mdir, "bad-inf.binary", merl((2, 2, 4), lambda c, k: math.inf if k == 5 else 1.0))
 
-    # Exact-profile tables (.ssp, format 4): checksum of the whole file (its own 8 bytes read as
+    # Exact-profile tables (.ssp, format 5): checksum of the whole file (its own 8 bytes read as
     # zeros) at 24..31, payload offset at 12..15.
     sdir = os.path.join(out, "ssp")
     os.makedirs(sdir, exist_ok=True)
@@ -207,7 +207,8 @@ def main(brdftool, out):
         "g-count-zero": sp("<I", 40, 0, fix=True),
         "albedo-count-huge": sp("<I", 52, 0xFFFFFFFF, fix=True),
         "radial-count-3": sp("<I", 56, 3, fix=True),
-        "reserved-nonzero": sp("<I", 76, 1, fix=True),
+        "band-edges-16": sp("<I", 76, 16, fix=True),
+        "band-edges-in-slabs": patcher(sgood["slabs"], ssp_fix)("<I", 76, 1, fix=True),
         "rho0-nan": sp("<d", 80, math.nan, fix=True),
         "u-step-zero": sp("<d", 96, 0.0, fix=True),
         "radiance-orders-huge": sp("<d", 152, 1e9, fix=True),
@@ -218,7 +219,7 @@ def main(brdftool, out):
         "header-byte-60": sp("<I", 60, 11),  # radial nodes per decade, checksum left: format 2 missed it
         "total-nan": sp("<f", soff, math.nan, fix=True),
         "total-negative": sp("<f", soff, -0.5, fix=True),
-        "profile-negative": sp("<f", len(sb) - 4, -1.0, fix=True),
+        "band-ratio-negative": sp("<f", len(sb) - 4, -1.0, fix=True),
         "angle-huge": sp("<f", soff + 24, 1e30, fix=True),
     }
     for name, data in sbad.items():

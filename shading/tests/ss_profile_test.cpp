@@ -124,7 +124,7 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
         {"empty", [](auto& b) { b.clear(); }, "offset 0: expected a header of 160 bytes"},
         {"truncated header", [](auto& b) { b.resize(100); }, "offset 100: expected a header"},
         {"magic", [](auto& b) { b[0] = 'X'; }, "offset 0: expected the magic"},
-        {"version", [&](auto& b) { set32(b, 8, 2); }, "offset 8: expected format version 4, found 2 (rebuild it: make brdf-data"},
+        {"version", [&](auto& b) { set32(b, 8, 2); }, "offset 8: expected format version 5, found 2 (rebuild it: make brdf-data"},
         {"flags", [&](auto& b) { set32(b, 36, 4), patch_checksum(b); }, "offset 36: expected flags"},
         {"g count", [&](auto& b) { set32(b, 40, 0), patch_checksum(b); }, "offset 40: expected 1 to 64 g nodes, found 0"},
         {"albedo count", [&](auto& b) { set32(b, 52, 100000), patch_checksum(b); }, "offset 52: expected 4 to 1000 albedo nodes"},
@@ -143,13 +143,24 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
              patch_checksum(b);
          },
          "offset " + std::to_string(off) + ": g=0 eta=1 d=inf reflection albedo=0.095162582 total: expected a value in [0, 1.5], found nan"},
-        {"negative profile",
+        {"negative band ratio",
          [&](auto& b) {
              const float neg = -1.0f;
              std::memcpy(&b[b.size() - 4], &neg, 4);
              patch_checksum(b);
          },
+         "reflection albedo=0.999992861 band exit ratio 63: expected a value in [0, 100], found -1"},
+        {"negative profile",
+         [&](auto& b) {
+             const float neg = -1.0f;
+             std::memcpy(&b[b.size() - 4 * (1 + 8 + 64)], &neg, 4);
+             patch_checksum(b);
+         },
          "radius node 50: expected a value in [0, 1e+30], found -1"},
+        {"band edges", [&](auto& b) { set32(b, 76, 16), patch_checksum(b); }, "offset 76: expected 0 to 15 exit-distance band edges, found 16"},
+        {"band edge order",
+         [&](auto& b) { setf64(b, 160 + 8 * (2 + 2 + 1 + 6 + 1), 0.1), patch_checksum(b); },
+         "exit-distance band edge node 1: expected increasing values, found 0.1 after 0.25"},
     };
     for (const Case& c : cases) {
         std::vector<std::uint8_t> b = good;
@@ -175,7 +186,7 @@ TEST(ProfileTables, EveryChangedByteIsRefused) {
             b[i] ^= bit;
             const std::string err = load_error(b);
             ++tried;
-            const char* want = i < 8 ? "t.ssp: offset 0: expected the magic" : i < 12 ? "t.ssp: offset 8: expected format version 4"
+            const char* want = i < 8 ? "t.ssp: offset 0: expected the magic" : i < 12 ? "t.ssp: offset 8: expected format version 5"
                                                                                       : "t.ssp: offset 24: expected the file's checksum";
             ASSERT_EQ(err.rfind(want, 0), 0u) << "byte " << i << " ^ " << int(bit) << ": " << err;
         }
@@ -339,6 +350,46 @@ TEST(ExactProfile, UniformlyLitPlaneRendersTotalTimesExitFactor) {
     ASSERT_NE(tm, nullptr);
     const Vec3 wi = normalize(Vec3(0.6, 0, 0.8));
     EXPECT_NEAR(tm->brdf->f(n, wi).g * kPi, p->entry_factor(0.8).g, 1e-12);
+}
+
+TEST(ExactProfile, ExitWeightAveragesOneAgainstRdAndFollowsTheBands) {
+    // RadialProfile::exit_weight: for every view, the weight's mean against Rd 2 pi r is 1 (a
+    // uniformly lit half-space renders as without it), checked by a quadrature of its own
+    // (midpoints, 4000 per octave of r); at each node it is the channel's band ratio, scaled
+    // per band cosine (the two cosines' scales differ by well under 1e-4).
+    auto tables = std::make_shared<ProfileTables>(small_tables());
+    const Medium m = Medium::from_reduced(Rgb(1.0, 0.9, 0.7), Rgb(0.01, 0.1, 0.3), 1.5);
+    const ExactProfile p(m, tables);
+    for (double cos_o : {1.0, 0.6, 0.15}) {
+        RadialWeight w;
+        ASSERT_TRUE(p.exit_weight(cos_o, &w));
+        ASSERT_GE(w.nodes, 8);
+        for (int c = 0; c < 3; ++c) {
+            double sum = 0;
+            const double st = p.sigma_t_prime(c);
+            for (double r = 1e-6 / st; r < 1e4 / st; r *= std::exp(std::log(2.0) / 4000)) {
+                const double dr = r * (std::exp(std::log(2.0) / 4000) - 1), mid = r + 0.5 * dr;
+                sum += p.rd(mid)[c] * w.at(c, mid) * 2 * kPi * mid * dr;
+            }
+            EXPECT_NEAR(sum / p.total()[c], 1.0, 2e-3) << "cos " << cos_o << " channel " << c;
+            // the node values are the band ratios times one scale
+            const ChannelProfile& ch = *p.channel(c);
+            const double mi = std::sqrt(1 - (1 - cos_o * cos_o) / (1.5 * 1.5));
+            int j = 0;
+            while (j + 2 < ch.exit_band_nodes() && mi > ch.exit_band_cosine(j + 1)) ++j;
+            const double t = std::clamp((mi - ch.exit_band_cosine(j)) / (ch.exit_band_cosine(j + 1) - ch.exit_band_cosine(j)), 0.0, 1.0);
+            auto ratio = [&](int i) {
+                const double rho = RadialWeight::node_x(i) * p.mean_free_path() * st;
+                return ch.exit_band_ratio(rho, j) * (1 - t) + ch.exit_band_ratio(rho, j + 1) * t;
+            };
+            const double k = w.w[3][c] / ratio(3);
+            for (int i = 0; i < w.nodes; i += 5) EXPECT_NEAR(w.w[i][c], k * ratio(i), 3e-4 * k) << i;
+            EXPECT_NEAR(w.at(c, 0.0), w.w[0][c], 1e-12);
+        }
+    }
+    // the dipole has none
+    RadialWeight w;
+    EXPECT_FALSE(DipoleRadialProfile(Dipole(m, FdrModel::JensenFit)).exit_weight(1.0, &w));
 }
 
 TEST(DipoleRadialProfile, KeepsTheDipoleExactly) {

@@ -77,6 +77,7 @@ ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables>
         for (int c = 0; c < 3 && slab_gap_.empty(); ++c)
             if (ch_[c]) slab_gap_ = ChannelProfile::range_error(*slab_tables_, g_[c], m.eta, 1.0);
     }
+    build_exit_weights();
     for (const auto& [g, channels] : clamped) {
         const double gc = std::clamp(g, s.g.front(), s.g.back());
         notes_.push_back("g = " + fmt(g) + " (" + channels + ") is outside the exact profile's tables [" + fmt(s.g.front()) +
@@ -117,6 +118,66 @@ Rgb ExactProfile::exit_factor(double cos_o) const {
     for (int c = 0; c < 3; ++c)
         if (ch_[c]) v[c] = ch_[c]->exit_factor(cos_o);
     return v;
+}
+
+void ExactProfile::build_exit_weights() {
+    // The channels' band nodes (one set of inside cosines: every channel reads the same tables).
+    int J = 0;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) J = std::max(J, ch_[c]->exit_band_nodes());
+    if (J == 0) return;
+    const double mfp = mean_free_path();
+    band_inv_scale_ = 1.0 / mfp;
+    // nodes out to the cutoff
+    int n = 2;
+    while (n < RadialWeight::kMaxNodes && RadialWeight::node_x(n - 1) * mfp < cutoff_) ++n;
+    band_r_nodes_ = n;
+    band_cos_.resize(std::size_t(J));
+    band_w_.assign(std::size_t(n) * J * 3, 1.0);
+    for (int c = 0; c < 3; ++c) {
+        if (!ch_[c] || ch_[c]->exit_band_nodes() != J) continue;
+        const ChannelProfile& ch = *ch_[c];
+        const double st = st_[c];
+        for (int j = 0; j < J; ++j) {
+            band_cos_[std::size_t(j)] = ch.exit_band_cosine(j);
+            auto w = [&](int i) -> double& { return band_w_[(std::size_t(i) * J + j) * 3 + c]; };
+            for (int i = 0; i < n; ++i) w(i) = ch.exit_band_ratio(RadialWeight::node_x(i) * mfp * st, j);
+            // Its mean against Rd (the weight is linear in r on each segment: 8 midpoints per
+            // segment, each with the disc integral over its part), then scaled to 1.
+            double sum = 0;
+            for (int i = 0; i + 1 < n; ++i) {
+                const double a = RadialWeight::node_x(i) * mfp, b = RadialWeight::node_x(i + 1) * mfp;
+                double below = ch.disc(a * st);
+                for (int q = 0; q < 8; ++q) {
+                    const double hi = a + (b - a) * (q + 1) / 8.0, above = ch.disc(hi * st);
+                    sum += (above - below) * (w(i) + (w(i + 1) - w(i)) * (q + 0.5) / 8.0);
+                    below = above;
+                }
+            }
+            sum += (ch.total() - ch.disc(RadialWeight::node_x(n - 1) * mfp * st)) * w(n - 1);
+            const double scale = sum > 0 && ch.total() > 0 ? ch.total() / sum : 1.0;
+            for (int i = 0; i < n; ++i) w(i) *= scale;
+        }
+    }
+}
+
+bool ExactProfile::exit_weight(double cos_o, RadialWeight* out) const {
+    if (band_w_.empty()) return false;
+    const int J = int(band_cos_.size()), n = band_r_nodes_;
+    // the refracted (inside) cosine, between the band cosines (held beyond them)
+    const double c2 = std::clamp(cos_o, 0.0, 1.0);
+    const double mi = std::sqrt(std::max(0.0, 1.0 - (1.0 - c2 * c2) / (eta_ * eta_)));
+    int j = 0;
+    while (j + 2 < J && mi > band_cos_[std::size_t(j) + 1]) ++j;
+    const double t = std::clamp((mi - band_cos_[std::size_t(j)]) / (band_cos_[std::size_t(j) + 1] - band_cos_[std::size_t(j)]), 0.0, 1.0);
+    out->inv_scale = band_inv_scale_;
+    out->nodes = n;
+    for (int i = 0; i < n; ++i) {
+        const double* a = &band_w_[(std::size_t(i) * J + j) * 3];
+        const double* b = a + 3;
+        for (int c = 0; c < 3; ++c) out->w[i][c] = a[c] + (b[c] - a[c]) * t;
+    }
+    return true;
 }
 
 Rgb ExactProfile::entry_factor(double cos_i) const {

@@ -13,8 +13,10 @@ namespace {
 // The profile averaged over an aggregate's points, to second order: f(|x - p|) ~ f(d) +
 // (1/2) tr(H Sigma), H the Hessian in p: f'' u u^T + (f'/d)(I - u u^T), u = (c - x)/d (f', f''
 // tabulated with f), Sigma the points' covariance `cov` (xx yy zz xy xz yz); v = c - x, dc2 =
-// |v|^2. Times the aggregate's flux, never below 0 (the expansion can undershoot where Rd ~ 0).
-Rgb aggregate_exitance(const RdProfile& rd, const double* C, const Rgb& flux, const Vec3& v, double dc2) {
+// |v|^2. Times the aggregate's flux, never below 0 (the expansion can undershoot where Rd ~ 0),
+// and the weight at the centre's distance (optional).
+Rgb aggregate_exitance(const RdProfile& rd, const double* C, const Rgb& flux, const Vec3& v, double dc2,
+                       const RadialWeight* weight) {
     const double dc = std::sqrt(dc2), inv = 1.0 / dc;
     const Vec3 u = v * inv;
     const double uCu = u.x * (C[0] * u.x + C[3] * u.y + C[4] * u.z) +
@@ -27,36 +29,38 @@ Rgb aggregate_exitance(const RdProfile& rd, const double* C, const Rgb& flux, co
     out.r = std::max(0.0, f0.r + a * f2.r + b * f1.r) * flux.r;
     out.g = std::max(0.0, f0.g + a * f2.g + b * f1.g) * flux.g;
     out.b = std::max(0.0, f0.b + a * f2.b + b * f1.b) * flux.b;
-    return out;
+    return weight ? out * weight->at(dc) : out;
 }
 
 }  // namespace
 
 Rgb PointCloud::far_exitance(const RdProfile& rd, const Vec3& x, double r0, double h, double max_angle,
-                             double cutoff, std::size_t* visited) const {
-    return far_sum<false>(rd, nullptr, x, Vec3(), 0.0, r0, h, max_angle, cutoff * cutoff, Rgb(0.0), visited, nullptr);
+                             double cutoff, std::size_t* visited, const RadialWeight* weight) const {
+    return far_sum<false>(rd, nullptr, x, Vec3(), 0.0, r0, h, max_angle, cutoff * cutoff, Rgb(0.0), visited, nullptr,
+                          weight);
 }
 
 Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                    double d, double r0, double h, double max_angle, const Rgb& near_opposite,
-                                   std::size_t* visited, Rgb* opposite) const {
+                                   std::size_t* visited, Rgb* opposite, const RadialWeight* weight) const {
     return far_sum<true>(same, &transmit, x, nx, d, r0, h, max_angle, sqr(same.r_max()), near_opposite, visited,
-                         opposite);
+                         opposite, weight);
 }
 
-Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h) const {
-    return exact_sum<false>(rd, nullptr, x, Vec3(), 0.0, r0, h, Rgb(0.0));
+Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h,
+                                   const RadialWeight* weight) const {
+    return exact_sum<false>(rd, nullptr, x, Vec3(), 0.0, r0, h, Rgb(0.0), weight);
 }
 
 Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x,
                                          const Vec3& nx, double d, double r0, double h, const Rgb& near_opposite) const {
-    return exact_sum<true>(same, &transmit, x, nx, d, r0, h, near_opposite);
+    return exact_sum<true>(same, &transmit, x, nx, d, r0, h, near_opposite, nullptr);
 }
 
 template <bool kSided>
 Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d,
                         double r0, double h, double max_angle, double cut_same2, const Rgb& near_opposite,
-                        std::size_t* visited, Rgb* opposite) const {
+                        std::size_t* visited, Rgb* opposite, const RadialWeight* weight) const {
     Rgb sum, opp_sum;  // the opposite face's part of sum (added to both: sum's order as before)
     if (opposite) *opposite = Rgb(0.0);
     if (nodes_.empty()) return sum;
@@ -117,7 +121,8 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
         if (r2 <= inner2 || r2 > cut_same2) return;
         const double r = std::sqrt(r2);
         const double w = r2 >= outer2 ? 1.0 : window(r, r0, h);
-        sum += same.rd(r) * s.flux * w;
+        const Rgb e = same.rd(r) * s.flux * w;
+        sum += weight ? e * weight->at(r) : e;
     };
     while (top > 0) {
         --top;
@@ -160,7 +165,7 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
             const Vec3 v = g.centre - x;
             const double dc2 = dot(v, v);
             if (double(nd.diag2) < angle2 * std::min(same.angle_gain2(dc2), gain_cap) * dc2) {
-                const Rgb e = aggregate_exitance(same, g.cov, g.flux, v, dc2);
+                const Rgb e = aggregate_exitance(same, g.cov, g.flux, v, dc2, weight);
                 sum.r += e.r;
                 sum.g += e.g;
                 sum.b += e.b;
@@ -218,7 +223,7 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
 
 template <bool kSided>
 Rgb PointCloud::exact_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d,
-                          double r0, double h, const Rgb& near_opposite) const {
+                          double r0, double h, const Rgb& near_opposite, const RadialWeight* weight) const {
     Rgb sum, near_flux;
     double near_area = 0;
     for (const SurfacePoint& s : points_) {
@@ -226,7 +231,7 @@ Rgb PointCloud::exact_sum(const RdProfile& same, const RdProfile* transmit, cons
         const double r = length(v);
         if (!kSided || dot(s.n, nx) > 0) {
             const double w = window(r, r0, h);
-            if (w > 0) sum += same.exact(r) * s.irradiance * (s.area * w);
+            if (w > 0) sum += same.exact(r) * s.irradiance * (s.area * w) * (weight ? weight->at(r) : Rgb(1.0));
         } else {
             const double vn = std::min(std::fabs(dot(v, nx)), d);
             const double rho = std::sqrt(std::max(0.0, r * r - vn * vn));
@@ -247,18 +252,19 @@ namespace shading {
 // ---------------------------------------------------------------- direction-aware profiles
 
 Rgb PointCloud::far_exitance_shifted(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h,
-                                     double max_angle, double cutoff, Rgb* near_irradiance, std::size_t* visited) const {
-    return shifted_sum<false>(rd, x, nx, r0, h, max_angle, cutoff * cutoff, near_irradiance, visited);
+                                     double max_angle, double cutoff, Rgb* near_irradiance, std::size_t* visited,
+                                     const RadialWeight* weight) const {
+    return shifted_sum<false>(rd, x, nx, r0, h, max_angle, cutoff * cutoff, near_irradiance, visited, weight);
 }
 
 Rgb PointCloud::far_exitance_shifted_exact(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h,
-                                           Rgb* near_irradiance) const {
-    return shifted_sum<true>(rd, x, nx, r0, h, 0.0, kInf, near_irradiance, nullptr);
+                                           Rgb* near_irradiance, const RadialWeight* weight) const {
+    return shifted_sum<true>(rd, x, nx, r0, h, 0.0, kInf, near_irradiance, nullptr, weight);
 }
 
 template <bool kExact>
 Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
-                            double cut2, Rgb* near_irradiance, std::size_t* visited) const {
+                            double cut2, Rgb* near_irradiance, std::size_t* visited, const RadialWeight* weight) const {
     constexpr int K = kSmearNodes;
     Rgb sum;
     // The near field: the (1 - w)-weighted flux of the images inside the window, per channel and
@@ -304,7 +310,8 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
                     const double us = dot(v, sc) * inv;
                     double f0, f1, f2;
                     rd.eval_channel(c, d, &f0, &f1, &f2);
-                    sum[c] += std::max(0.0, f0 + 0.5 * (f2 * us * us + f1 * inv * (s2 - us * us))) * f;
+                    sum[c] += std::max(0.0, f0 + 0.5 * (f2 * us * us + f1 * inv * (s2 - us * us))) * f *
+                              (weight ? weight->at(c, d) : 1.0);
                     continue;
                 }
             }
@@ -323,7 +330,8 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
                 }
                 if (w > 0) {
                     const double r = std::sqrt(r2);
-                    sum[c] += kSmearW[k] * w * f * (kExact ? rd.exact(r)[c] : rd.rd_channel(c, r));
+                    sum[c] += kSmearW[k] * w * f * (kExact ? rd.exact(r)[c] : rd.rd_channel(c, r)) *
+                              (weight ? weight->at(c, r) : 1.0);
                 }
             }
         }
@@ -388,12 +396,12 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
                         if (dm * dm > 36.0 * dot(sc, sc)) {
                             // far beyond the spread: the mean image, the exponential's variance
                             // |s|^2 along s added to the covariance
-                            r = taylor(c, dm, u, sc);
+                            r = taylor(c, dm, u, sc) * (weight ? weight->at(c, dm) : 1.0);
                         } else {
                             r = 0;
                             for (int j = 0; j < K; ++j) {
                                 const double dj = across(sc * kSmearT[j], &u);
-                                r += kSmearW[j] * taylor(c, dj, u, Vec3(0, 0, 0));
+                                r += kSmearW[j] * taylor(c, dj, u, Vec3(0, 0, 0)) * (weight ? weight->at(c, dj) : 1.0);
                             }
                         }
                         sum[c] += r * g.flux[c];

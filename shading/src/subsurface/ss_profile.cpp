@@ -126,6 +126,10 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     std::vector<double> angle_mu(129);
     for (int j = 0; j <= 128; ++j) angle_mu[std::size_t(j)] = mu_c + (1 - mu_c) * j / 128.0;
     const AngleBasis angle_basis(s.angle_nodes, angle_mu);
+    const int B = thickness == kInf && face == 0 ? s.band_count() : 0;
+    band_rho_.assign(std::size_t(B), 0.0);
+    band_ratio_.assign(std::size_t(B) * s.angle_nodes, 0.0);
+    band_nodes_ = std::size_t(s.angle_nodes);
     std::vector<ExitSum> exit_sums;
     for (auto [ie, w2] : we) exit_sums.emplace_back(s.angle_nodes, s.eta[ie]);
     for (auto [ig, w1] : wg) {
@@ -158,6 +162,10 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     for (int j = 0; j < nci; ++j) incidence_[j] += ww * r.incidence[j];
                     for (int j = 0; j < nci && j < int(r.shift.size()); ++j) shift_[j] += ww * r.shift[j];
                     for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_basis.value(r.angle, std::size_t(j));
+                    if (B > 0 && (r.band_rho.size() != std::size_t(B) || r.band_ratio.size() != band_ratio_.size()))
+                        throw std::logic_error("exact profile: a record's distance bands differ from the tables' count");
+                    for (int b = 0; b < B; ++b) band_rho_[b] += ww * r.band_rho[b];
+                    for (std::size_t i = 0; i < band_ratio_.size(); ++i) band_ratio_[i] += ww * r.band_ratio[i];
                     // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of the stored samples
                     // pi I / M: the exit distribution's integral (1 up to the interpolant's error).
                     own_flux += ww * exit_sums[ke](r.angle) / (s.eta[ie] * s.eta[ie]);
@@ -173,6 +181,10 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     for (double& v : angle_) v = std::max(0.0, v);
     for (double& v : incidence_) v = std::max(0.0, v);
     for (double& v : shift_) v = std::max(0.0, v);
+    for (double& v : band_ratio_) v = std::max(0.0, v);
+    // mean distances: increasing and > 0 (a mix of records keeps them so but for rounding)
+    for (std::size_t b = 0; b < band_rho_.size(); ++b)
+        band_rho_[b] = std::max(band_rho_[b], b ? band_rho_[b - 1] * (1 + 1e-9) : 1e-9);
 
     // Disc integrals at the nodes, then the tail beyond the last node (continuous there), then
     // one scale so the profile integrates to the interpolated total.
@@ -282,6 +294,20 @@ double ChannelProfile::interpolate_inside(const std::vector<double>& v, double c
     i = std::clamp(i, 0, n - 2);
     const double f = (cos_i - ci_[i]) / (ci_[i + 1] - ci_[i]);
     return v[i] * (1 - f) + v[i + 1] * f;
+}
+
+double ChannelProfile::exit_band_cosine(int j) const { return angle_node(j, int(band_nodes_)); }
+
+double ChannelProfile::exit_band_ratio(double rho, int j) const {
+    const std::size_t B = band_rho_.size(), J = band_nodes_;
+    if (B == 0) return 1.0;
+    auto at = [&](std::size_t b) { return band_ratio_[b * J + std::size_t(j)]; };
+    if (!(rho > band_rho_[0])) return at(0);
+    if (rho >= band_rho_[B - 1]) return at(B - 1);
+    std::size_t b = 0;
+    while (rho >= band_rho_[b + 1]) ++b;
+    const double t = std::log(rho / band_rho_[b]) / std::log(band_rho_[b + 1] / band_rho_[b]);
+    return at(b) + (at(b + 1) - at(b)) * t;
 }
 
 double ChannelProfile::entry_factor(double cos_o) const { return interpolate_inside(incidence_, cos_o); }

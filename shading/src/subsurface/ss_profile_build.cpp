@@ -34,7 +34,70 @@ struct Diagnostics {
     double worst_radiance_flux = 0;  // |exitance implied by the angular samples / the exits' total - 1|
     int dropped_tails = 0;           // tails whose amplitude would overflow the file (noise-only faces)
     int noisy_angles = 0;            // faces whose angular samples were normalised by their own flux
+    int borrowed_bands = 0;          // exit-distance bands with too few exits (the band inside's ratios)
 };
+
+// The high orders' inside radiance I(mu) = c0 + c1 mu + c2 mu^2: fitted to their arrivals'
+// histogram (na bins of mu) by weighted least squares; flux: the histogram's total; rms: the
+// flux-weighted rms relative residual.
+struct HighOrders {
+    double c[3] = {0, 0, 0};
+    double flux = 0, rms = 0;
+    double at(double mu) const { return std::max(0.0, c[0] + c[1] * mu + c[2] * mu * mu); }
+};
+
+HighOrders fit_high_orders(const double* arrivals, int na) {
+    HighOrders out;
+    double* c = out.c;
+    // flux in bin a = 2 pi integral over the bin of (c0 + c1 mu + c2 mu^2) mu dmu
+    double A[3][3] = {{0}}, b[3] = {0};
+    double flux = 0;
+    for (int ab = 0; ab < na; ++ab) {
+        const double v = arrivals[ab];
+        if (!(v > 0)) continue;
+        flux += v;
+        const double lo = double(ab) / na, hi = double(ab + 1) / na;
+        double row[3];
+        for (int p = 0; p < 3; ++p) row[p] = 2 * kPi * (std::pow(hi, p + 2) - std::pow(lo, p + 2)) / (p + 2);
+        for (int p = 0; p < 3; ++p) {
+            for (int q = 0; q < 3; ++q) A[p][q] += row[p] * row[q] / v;  // weight 1 / v (Poisson-like)
+            b[p] += row[p];                                             // v * row / v
+        }
+    }
+    if (flux > 0) {
+        // 3x3 normal equations, Gaussian elimination with partial pivoting
+        for (int p = 0; p < 3; ++p) {
+            int piv = p;
+            for (int q = p + 1; q < 3; ++q)
+                if (std::fabs(A[q][p]) > std::fabs(A[piv][p])) piv = q;
+            std::swap(A[p], A[piv]);
+            std::swap(b[p], b[piv]);
+            if (A[p][p] == 0) continue;
+            for (int q = p + 1; q < 3; ++q) {
+                const double m = A[q][p] / A[p][p];
+                for (int r = p; r < 3; ++r) A[q][r] -= m * A[p][r];
+                b[q] -= m * b[p];
+            }
+        }
+        for (int p = 3; p-- > 0;) {
+            double v = b[p];
+            for (int q = p + 1; q < 3; ++q) v -= A[p][q] * c[q];
+            c[p] = A[p][p] != 0 ? v / A[p][p] : 0.0;
+        }
+        double res = 0;
+        for (int ab = 0; ab < na; ++ab) {
+            const double v = arrivals[ab];
+            if (!(v > 0)) continue;
+            const double lo = double(ab) / na, hi = double(ab + 1) / na;
+            double model = 0;
+            for (int p = 0; p < 3; ++p) model += c[p] * 2 * kPi * (std::pow(hi, p + 2) - std::pow(lo, p + 2)) / (p + 2);
+            res += v * sqr(model / v - 1.0);
+        }
+        out.rms = std::sqrt(res / flux);
+    }
+    out.flux = flux;
+    return out;
+}
 
 void process_face(const McFace& f, const McSettings& mc, int k, double g, double eta, FaceRecord& rec,
                   Diagnostics& diag) {
@@ -221,54 +284,12 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     std::vector<double> I(J, 0.0);
     for (int j = 0; j < J; ++j) I[j] = f.radiance.empty() ? 0.0 : f.radiance[std::size_t(k) * J + j];
     {
-        // flux in bin a = 2 pi integral over the bin of (c0 + c1 mu + c2 mu^2) mu dmu
-        double A[3][3] = {{0}}, b[3] = {0};
-        double flux = 0;
-        for (int ab = 0; ab < na; ++ab) {
-            const double v = f.arrivals[std::size_t(k) * na + ab];
-            if (!(v > 0)) continue;
-            flux += v;
-            const double lo = double(ab) / na, hi = double(ab + 1) / na;
-            double row[3];
-            for (int p = 0; p < 3; ++p) row[p] = 2 * kPi * (std::pow(hi, p + 2) - std::pow(lo, p + 2)) / (p + 2);
-            for (int p = 0; p < 3; ++p) {
-                for (int q = 0; q < 3; ++q) A[p][q] += row[p] * row[q] / v;  // weight 1 / v (Poisson-like)
-                b[p] += row[p];                                             // v * row / v
-            }
-        }
-        double c[3] = {0, 0, 0};
-        if (flux > 0) {
-            // 3x3 normal equations, Gaussian elimination with partial pivoting
-            for (int p = 0; p < 3; ++p) {
-                int piv = p;
-                for (int q = p + 1; q < 3; ++q)
-                    if (std::fabs(A[q][p]) > std::fabs(A[piv][p])) piv = q;
-                std::swap(A[p], A[piv]);
-                std::swap(b[p], b[piv]);
-                if (A[p][p] == 0) continue;
-                for (int q = p + 1; q < 3; ++q) {
-                    const double m = A[q][p] / A[p][p];
-                    for (int r = p; r < 3; ++r) A[q][r] -= m * A[p][r];
-                    b[q] -= m * b[p];
-                }
-            }
-            for (int p = 3; p-- > 0;) {
-                double v = b[p];
-                for (int q = p + 1; q < 3; ++q) v -= A[p][q] * c[q];
-                c[p] = A[p][p] != 0 ? v / A[p][p] : 0.0;
-            }
-            double res = 0;
-            for (int ab = 0; ab < na; ++ab) {
-                const double v = f.arrivals[std::size_t(k) * na + ab];
-                if (!(v > 0)) continue;
-                const double lo = double(ab) / na, hi = double(ab + 1) / na;
-                double model = 0;
-                for (int p = 0; p < 3; ++p) model += c[p] * 2 * kPi * (std::pow(hi, p + 2) - std::pow(lo, p + 2)) / (p + 2);
-                res += v * sqr(model / v - 1.0);
-            }
-            if (flux > 0.1 * rec.multi) diag.worst_angle_rms = std::max(diag.worst_angle_rms, std::sqrt(res / flux));
-        }
-        for (int j = 0; j < J; ++j) I[j] += std::max(0.0, c[0] + c[1] * nodes[j] + c[2] * nodes[j] * nodes[j]);
+        double flux = 0, rms = 0;
+        const HighOrders c = fit_high_orders(f.arrivals.data() + std::size_t(k) * na, na);
+        flux = c.flux;
+        rms = c.rms;
+        if (flux > 0.1 * rec.multi) diag.worst_angle_rms = std::max(diag.worst_angle_rms, rms);
+        for (int j = 0; j < J; ++j) I[j] += c.at(nodes[j]);
     }
     // Exitance implied by I: 2 pi integral of Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o; against
     // the exits' own total it checks the two estimates (diagnostic).
@@ -297,6 +318,46 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     }
     rec.angle.resize(J);
     for (int j = 0; j < J; ++j) rec.angle[j] = norm_flux > 0 ? kPi * I[j] / norm_flux : 1.0;
+
+    // The exit distribution per distance band (DIPOLE.md 10.7): each band's inside radiance as
+    // the whole face's (next-event orders, then the high orders' fit), normalised by the
+    // exitance it implies, against the sum over the bands normalised the same way.
+    const int B = mc.band_count();
+    if (B == 0 || f.band_multi.empty()) return;
+    std::vector<std::vector<double>> Ib(B, std::vector<double>(J, 0.0));
+    std::vector<double> Isum(J, 0.0), implied_b(B, 0.0);
+    for (int b = 0; b < B; ++b) {
+        const std::size_t kb = std::size_t(k) * B + b;
+        const HighOrders c = fit_high_orders(f.band_arrivals.data() + kb * na, na);
+        for (int j = 0; j < J; ++j) {
+            Ib[b][j] = f.band_radiance[kb * J + j] + c.at(nodes[j]);
+            Isum[j] += Ib[b][j];
+        }
+        implied_b[b] = exit_sum(Ib[b], eta);
+    }
+    const double implied_sum = exit_sum(Isum, eta);
+    rec.band_rho.assign(B, 0.0);
+    rec.band_ratio.assign(std::size_t(B) * J, 1.0);
+    const double to_transport = 1.0 - alpha * g;
+    for (int b = 0; b < B; ++b) {
+        const std::size_t kb = std::size_t(k) * B + b;
+        const double m = f.band_multi[kb];
+        // the band's mean exit distance; an empty band: its edges' middle
+        const double lo = b > 0 ? mc.exit_bands[b - 1] : 0.0, hi = b + 1 < B ? mc.exit_bands[b] : 2.0 * lo;
+        rec.band_rho[b] = (m > 0 ? f.band_r[kb] / m : 0.5 * (lo + hi)) * to_transport;
+        // A band says something where it holds at least 1e-4 of the face's exits and its two
+        // estimates of them (the exits, the radiance's implied exitance) agree within a third;
+        // otherwise it takes the band inside it (the first band: 1).
+        const double implied_exits = kPi * implied_b[b] / (eta * eta);
+        const bool ok = rec.multi > 0 && m > 1e-4 * rec.multi && implied_b[b] > 0 && implied_sum > 0 &&
+                        std::fabs(implied_exits / m - 1.0) < 1.0 / 3.0;
+        for (int j = 0; j < J; ++j) {
+            double v = b > 0 ? rec.band_ratio[std::size_t(b - 1) * J + j] : 1.0;
+            if (ok && Isum[j] > 0) v = (Ib[b][j] / implied_b[b]) / (Isum[j] / implied_sum);
+            rec.band_ratio[std::size_t(b) * J + j] = std::clamp(v, 0.0, 100.0);
+        }
+        if (!ok) ++diag.borrowed_bands;
+    }
 }
 
 std::uint64_t node_seed(std::uint64_t seed, int node, int incidence) {
@@ -340,6 +401,10 @@ std::string ProfileBuildSettings::validate() const {
         return "radial bins: expected rho_0 > 0, 1 to 100 per decade, 4 to 1000 bins";
     if (angle_bins < 4 || angle_bins > 1000 || angle_nodes < 2 || angle_nodes > 32 || !(radiance_orders >= 2 && radiance_orders <= 1e5))
         return "angles: expected 4 to 1000 bins, 2 to 32 nodes and radiance_orders in [2, 1e5]";
+    if (exit_bands.size() > 15) return "exit_bands: expected at most 15 edges";
+    for (std::size_t i = 0; i < exit_bands.size(); ++i)
+        if (!(exit_bands[i] > (i ? exit_bands[i - 1] : 0.0) && exit_bands[i] <= 1e3))
+            return "exit_bands: expected increasing edges in (0, 1000] transport mfp";
     if (photons < 1 || !(short_orders >= 1) || !(roulette_order >= 1) || !(oblique_fraction > 0 && oblique_fraction <= 1))
         return "photons: expected photons >= 1, short_orders >= 1, roulette_order >= 1, oblique_fraction in (0, 1]";
     return "";
@@ -353,7 +418,7 @@ bool ProfileTables::stale(const ProfileBuildSettings& w) const {
            s.angle_bins != w.angle_bins || s.angle_nodes != w.angle_nodes || s.radiance_orders != w.radiance_orders ||
            s.photons != w.photons ||
            s.short_photons != w.short_photons || s.short_orders != w.short_orders || s.roulette_order != w.roulette_order ||
-           s.oblique_fraction != w.oblique_fraction || s.seed != w.seed;
+           s.oblique_fraction != w.oblique_fraction || s.seed != w.seed || s.exit_bands != w.exit_bands;
 }
 
 std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& s,
@@ -366,6 +431,7 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
     t->faces = 1;
     for (double d : s.thickness)
         if (d != kInf) t->faces = 2;
+    if (t->faces == 2) t->settings.exit_bands.clear();  // slabs: no exit-distance bands
     t->records.resize(s.g.size() * s.eta.size() * s.thickness.size() * t->faces * s.albedos);
     std::vector<double> albedo_nodes(s.albedos);
     for (int k = 0; k < s.albedos; ++k) albedo_nodes[k] = t->albedo(k);
@@ -394,6 +460,8 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             mc.angle_bins = s.angle_bins;
             mc.radiance_orders = int(std::ceil(s.radiance_orders / (1.0 - g)));
             mc.radiance_nodes = s.angle_nodes;
+            if (t->faces == 1)
+                for (double e : s.exit_bands) mc.exit_bands.push_back(e / (1.0 - g));
             mc.seed = node_seed(s.seed, run, -1);
             const McResult normal = run_transport_mc(mc);
             Diagnostics diag;
@@ -412,6 +480,7 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             McSettings ob = mc;
             ob.radial = false;
             ob.radiance_orders = 0;
+            ob.exit_bands.clear();
             ob.photons = std::max<std::uint64_t>(1, std::uint64_t(double(s.photons) * s.oblique_fraction));
             ob.short_photons = std::uint64_t(double(s.short_photons) * s.oblique_fraction);
             for (std::size_t ic = 0; ic + 1 < s.cos_inside.size(); ++ic) {
@@ -445,10 +514,10 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                               "g=%g d=%g (%zu etas): %.2f s, %.3g flights, %d threads; tail amplitude flux/fit worst %.3f, "
                               "deconvolution residual %.1e, high-order angle fit rms residual worst %.3f, angular/exit "
                               "flux mismatch worst %.4f, incidence factors clamped %d, noise-only tails dropped %d, angular "
-                              "samples normalised by their own flux %d",
+                              "samples normalised by their own flux %d, distance bands borrowed %d",
                               g, s.thickness[id], ne, sec, double(steps), normal.threads_used, diag.worst_tail_ratio,
                               diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, clamped, diag.dropped_tails,
-                              diag.noisy_angles);
+                              diag.noisy_angles, diag.borrowed_bands);
                 log(buf);
             }
         }

@@ -32,7 +32,8 @@ constexpr std::uint32_t kFlagTransmission = 1;
 constexpr int kFixedFields = 6;  // multi, single, ballistic, tail_k, tail_a, rho_tail
 
 int record_floats(const ProfileBuildSettings& s) {
-    return kFixedFields + s.angle_nodes + 2 * int(s.cos_inside.size()) + s.bins.count;
+    return kFixedFields + s.angle_nodes + 2 * int(s.cos_inside.size()) + s.bins.count +
+           s.band_count() * (1 + s.angle_nodes);
 }
 
 }  // namespace
@@ -54,6 +55,7 @@ std::string ProfileTables::describe() const {
       << "\n  inside incidence cosines: " << list(s.cos_inside) << "\n  angle: " << s.angle_nodes
       << " inside-radiance samples (next-event to " << num(s.radiance_orders) << "/(1-g) events, then " << s.angle_bins
       << " bins)"
+      << "\n  exit-distance bands: " << (s.exit_bands.empty() ? std::string("none") : "edges " + list(s.exit_bands) + " transport mfp")
       << "\n  photons per node: " << s.photons << " + " << s.short_photons << " short (" << num(s.short_orders)
       << "/(1-g) events), roulette from " << num(s.roulette_order) << "/(1-g) events, oblique " << num(s.oblique_fraction)
       << ", seed " << s.seed << "\n  records: " << records.size() << ", " << record_floats(s) << " floats each\n";
@@ -81,7 +83,7 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
     put_u32(b, std::uint32_t(s.cos_inside.size()));      // 64
     put_u32(b, std::uint32_t(s.angle_nodes));            // 68
     put_u32(b, std::uint32_t(s.angle_bins));             // 72
-    put_u32(b, 0);                                       // 76 reserved
+    put_u32(b, std::uint32_t(s.exit_bands.size()));     // 76 exit-distance band edges
     put_f64(b, s.bins.rho_0);                            // 80
     put_f64(b, s.u_0);                                   // 88
     put_f64(b, s.u_step);                                // 96
@@ -96,6 +98,7 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
     for (double v : s.eta) put_f64(b, v);
     for (double v : s.thickness) put_f64(b, v);
     for (double v : s.cos_inside) put_f64(b, v);
+    for (double v : s.exit_bands) put_f64(b, v);
     while (b.size() % 16) b.push_back(0);
     const std::size_t off = b.size();
     for (const FaceRecord& r : records) {
@@ -104,6 +107,8 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
         for (double v : r.incidence) put_f32(b, float(v));
         for (double v : r.shift) put_f32(b, float(v));
         for (double v : r.profile) put_f32(b, float(v));
+        for (double v : r.band_rho) put_f32(b, float(v));
+        for (double v : r.band_ratio) put_f32(b, float(v));
     }
     bytes::wr_u32(b, 12, std::uint32_t(off));
     bytes::wr_u64(b, 16, b.size() - off);
@@ -176,7 +181,10 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
     s.short_photons = rd_u64(data + 136);
     s.seed = rd_u64(data + 144);
     s.radiance_orders = rd_f64(data + 152);
-    if (rd_u32(data + 76) != 0) fail(76, "expected 0 in the reserved field, found " + std::to_string(rd_u32(data + 76)));
+    const std::uint32_t band_edges = rd_u32(data + 76);
+    if (band_edges > 15) fail(76, "expected 0 to 15 exit-distance band edges, found " + std::to_string(band_edges));
+    if (band_edges > 0 && t->faces == 2) fail(76, "expected no exit-distance bands in a slab table (flags 1), found " +
+                                                     std::to_string(band_edges) + " edges");
     if (!(s.bins.rho_0 > 0 && s.bins.rho_0 < 1e3)) fail(80, "expected the first radius in (0, 1000), found " + num(s.bins.rho_0));
     // The generator's settings (the file's identity for --if-stale): ranges of ProfileBuildSettings.
     if (!(s.short_orders >= 1 && s.short_orders <= 1e6)) fail(104, "expected short orders in [1, 1e6], found " + num(s.short_orders));
@@ -192,7 +200,7 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
         fail(96, "expected an albedo step > 0 with the last node u <= 30, found " + num(s.u_step));
     // Axes.
     std::size_t at = kFixedHeader;
-    const std::size_t axis_bytes = 8 * (std::size_t(n[0]) + n[1] + n[2] + n[6]);
+    const std::size_t axis_bytes = 8 * (std::size_t(n[0]) + n[1] + n[2] + n[6] + band_edges);
     if (size < at + axis_bytes)
         fail(size, "expected " + std::to_string(axis_bytes) + " bytes of axes after the header, found " +
                        std::to_string(size - at));
@@ -214,6 +222,7 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
     read_axis(s.thickness, n[2], "thickness", 1e-3, 1e6, true);
     read_axis(s.cos_inside, n[6], "inside incidence cosine", 0.01, 1.0, false);
     if (s.cos_inside.back() != 1.0) fail(at - 8, "expected the last inside incidence cosine to be 1, found " + num(s.cos_inside.back()));
+    read_axis(s.exit_bands, band_edges, "exit-distance band edge", 1e-6, 1e3, false);
     if (t->faces == 1 && !(s.thickness.size() == 1 && s.thickness[0] == kInf))
         fail(thickness_at, "expected one thickness node, inf, in a reflection-only table (flags 0)");
     const std::size_t off = (at + 15) & ~std::size_t(15);
@@ -277,6 +286,11 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
             fail(p - 4, label("exit shift at normal incidence") + ": expected 0, found " + num(r.shift.back()));
         r.profile.resize(s.bins.count);
         for (int b = 0; b < s.bins.count; ++b) r.profile[b] = value("radius node", b, 0.0, 1e30);
+        const int B = s.band_count();
+        r.band_rho.resize(std::size_t(B));
+        for (int b = 0; b < B; ++b) r.band_rho[std::size_t(b)] = value("band distance", b, 0.0, 1e6);
+        r.band_ratio.resize(std::size_t(B) * s.angle_nodes);
+        for (std::size_t j = 0; j < r.band_ratio.size(); ++j) r.band_ratio[j] = value("band exit ratio", int(j), 0.0, 100.0);
     }
     return t;
 }

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "shading/core/quadrature.h"
+
 namespace shading {
 
 namespace {
@@ -274,24 +276,60 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
     std::size_t visited = 0;
+    // The exit distribution's change with distance (DIPOLE.md 10.7): Rd weighted per distance
+    // for this view; the near field (within about 3 h of x) at the weight of distance h.
+    RadialWeight weight;
+    const RadialWeight* wt = model_->exit_weight(cos_o, &weight) ? &weight : nullptr;
     if (cloud.directional()) {
         // Light that entered at a slant leaves about its shifted entries: the near field is lit
         // by the irradiance upstream of x (PointCloud::far_exitance_shifted), not x's own.
         const int level = cloud.lookup_level_shifted(x);
         const double h = cloud.level_spacing(level), r0 = near_radius(h);
         Rgb upstream;
-        Rgb m = cloud.far_exitance_shifted(*profile_, x, n, r0, h, settings_.max_angle, cutoff(), &upstream, &visited);
+        Rgb m = cloud.far_exitance_shifted(*profile_, x, n, r0, h, settings_.max_angle, cutoff(), &upstream, &visited, wt);
         count_lookup(visited, false);
-        m += upstream * cloud.level_near(level);
+        m += upstream * cloud.level_near(level) * (wt ? near_weight(*wt, h) : Rgb(1.0));
         // (the curvature's window follows x's own level, not the shifted lookup's)
         return curved(m, cloud, x, n, curving_ ? cloud.lookup_level(x) : 0) * model_->exit_factor(cos_o);
     }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
-    Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited);
+    Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited, wt);
     count_lookup(visited, false);
-    m += irradiance_here * cloud.level_near(level);
+    m += irradiance_here * cloud.level_near(level) * (wt ? near_weight(*wt, h) : Rgb(1.0));
     return curved(m, cloud, x, n, level) * model_->exit_factor(cos_o);
+}
+
+Rgb Subsurface::near_weight(const RadialWeight& w, double h) const {
+    const double r0 = near_radius(h);
+    Rgb num, den;
+    static const double kParts[5] = {0.0, 0.125, 0.5, 1.0, 3.0};  // in h: the weight's steep start, the ramp
+    for (int part = 0; part < 4; ++part) {
+        const double a = kParts[part] * h, len = (kParts[part + 1] - kParts[part]) * h;
+        for (int q = 0; q < 8; ++q) {
+            const double r = a + len * kGaussLegendre8UnitX[q];
+            const double f = kGaussLegendre8UnitW[q] * len * r * (1.0 - PointCloud::window(r, r0, h));
+            const Rgb rd = profile_->rd(r) * f;
+            num += rd * w.at(r);
+            den += rd;
+        }
+    }
+    Rgb out(1.0);
+    for (int c = 0; c < 3; ++c)
+        if (den[c] > 0) out[c] = num[c] / den[c];
+    return out;
+}
+
+const RadialWeight* Subsurface::slab_weight(double cos_o, double d, RadialWeight* w) const {
+    if (!model_->exit_weight(cos_o, w)) return nullptr;
+    bool any = false;
+    for (int c = 0; c < 3; ++c) {
+        const double s = std::clamp((d * dipole_.channel(c).sigma_t_prime - 4.0) / 4.0, 0.0, 1.0);
+        if (s < 1)
+            for (int i = 0; i < w->nodes; ++i) w->w[i][c] = 1.0 + s * (w->w[i][c] - 1.0);
+        any = any || s > 0;
+    }
+    return any ? w : nullptr;
 }
 
 Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const {
@@ -317,14 +355,18 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     const SlabCache::Around slab = slabs_->around(thickness);
     const int level = cloud.lookup_level(x);
     std::size_t visited = 0;
-    Rgb m = slab_radiance(*slab.a, cloud, x, n, cos_o, irradiance_here, level, &visited);
-    if (slab.b) m = m * (1.0 - slab.t) + slab_radiance(*slab.b, cloud, x, n, cos_o, irradiance_here, level, &visited) * slab.t;
+    RadialWeight weight;
+    const RadialWeight* wt = slab_weight(cos_o, thickness, &weight);
+    Rgb m = slab_radiance(*slab.a, cloud, x, n, cos_o, irradiance_here, level, &visited, wt);
+    if (slab.b)
+        m = m * (1.0 - slab.t) + slab_radiance(*slab.b, cloud, x, n, cos_o, irradiance_here, level, &visited, wt) * slab.t;
     count_lookup(visited, true);
     return curved(m, cloud, x, n, level);
 }
 
 Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n,
-                              double cos_o, const Rgb& irradiance_here, int level, std::size_t* visited) const {
+                              double cos_o, const Rgb& irradiance_here, int level, std::size_t* visited,
+                              const RadialWeight* weight) const {
     const SlabProfiles& p = node.p;
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
     Rgb near_same, near_opposite;
@@ -332,9 +374,9 @@ Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const PointCloud& clo
     Rgb opposite;
     std::size_t seen = 0;
     Rgb m = cloud.far_exitance_sided(*p.same, *p.transmit, x, n, p.d, r0, h, settings_.max_angle, near_opposite, &seen,
-                                     &opposite);
+                                     &opposite, weight);
     *visited += seen;
-    m += irradiance_here * near_same;
+    m += irradiance_here * near_same * (weight ? near_weight(*weight, h) : Rgb(1.0));
     if (!p.exit) return m * model_->exit_factor(cos_o);
     // The exact slab tables: each face's own exit distribution (DIPOLE.md 6a).
     Rgb same_exit, opposite_exit;

@@ -58,6 +58,11 @@ std::string McSettings::validate() const {
         return "radiance: expected 0 .. 1000000 orders and 1 .. 32 nodes";
     if (radiance_orders > 0 && (cos_inside != 1.0 || !radial))
         return "radiance: the estimate needs normal incidence (cos_inside 1) and the radial tallies";
+    if (exit_bands.size() > 15) return "exit_bands: expected at most 15 edges";
+    for (std::size_t i = 0; i < exit_bands.size(); ++i)
+        if (!(exit_bands[i] > (i ? exit_bands[i - 1] : 0.0) && std::isfinite(exit_bands[i])))
+            return "exit_bands: expected finite, increasing edges > 0";
+    if (!exit_bands.empty() && radiance_orders == 0) return "exit_bands: the bands need the radiance estimate";
     return "";
 }
 
@@ -91,8 +96,15 @@ struct FaceTally {
     std::vector<double> ballistic, single, multi, single_sq, multi_sq, radial, radial_sq, arrivals;
     std::vector<double> multi_x;  // sum of the multiple-scattering exits' weight times x
     std::vector<double> ne;  // next-event radiance by order: ne[n * nodes + j], n <= radiance_orders
-    void init(std::size_t K, int nb, int na, bool radial_on, int ne_orders, int ne_nodes) {
+    // Per exit-distance band (B bands; McFace::band_*): ne_band[(n * B + b) * nodes + j] by
+    // order, band_multi and band_r [k * B + b], band_arrivals [(k * B + b) * na + a].
+    std::vector<double> ne_band, band_multi, band_r, band_arrivals;
+    void init(std::size_t K, int nb, int na, bool radial_on, int ne_orders, int ne_nodes, int B) {
         ne.assign(ne_orders > 0 ? std::size_t(ne_orders + 1) * ne_nodes : 0, 0.0);
+        ne_band.assign(B > 0 ? std::size_t(ne_orders + 1) * B * ne_nodes : 0, 0.0);
+        band_multi.assign(K * B, 0.0);
+        band_r.assign(K * B, 0.0);
+        band_arrivals.assign(K * B * na, 0.0);
         ballistic.assign(K, 0.0);
         single.assign(K, 0.0);
         multi.assign(K, 0.0);
@@ -117,6 +129,10 @@ struct FaceTally {
         acc(radial_sq, o.radial_sq);
         acc(arrivals, o.arrivals);
         acc(ne, o.ne);
+        acc(ne_band, o.ne_band);
+        acc(band_multi, o.band_multi);
+        acc(band_r, o.band_r);
+        acc(band_arrivals, o.band_arrivals);
     }
     void clear_squares() {
         std::fill(single_sq.begin(), single_sq.end(), 0.0);
@@ -129,10 +145,11 @@ struct Tally {
     std::uint64_t steps = 0;
     bool is_short = false;
     void init(const McSettings& s) {
-        for (auto& f : face) {
-            f.resize(s.eta.size());
-            for (FaceTally& t : f)
-                t.init(s.albedos.size(), s.bins.count, s.angle_bins, s.radial, s.radiance_orders, s.radiance_nodes);
+        for (int which = 0; which < 2; ++which) {
+            face[which].resize(s.eta.size());
+            for (FaceTally& t : face[which])
+                t.init(s.albedos.size(), s.bins.count, s.angle_bins, s.radial, s.radiance_orders, s.radiance_nodes,
+                       which == 0 ? s.band_count() : 0);
         }
     }
     void add(const Tally& o) {
@@ -168,6 +185,9 @@ public:
             ne_sin_.push_back(std::sqrt(std::max(0.0, 1.0 - m * m)));
         }
         hg_norm_ = (1.0 - s.g * s.g) / (4.0 * kPi);
+        B_ = s.band_count();
+        for (double e : s.exit_bands) band_edge2_.push_back(e * e);
+        for (std::size_t j = 0; j < ne_mu_.size(); ++j) ne_tan_.push_back(ne_sin_[j] * ne_inv_mu_[j]);
     }
 
     void run_job(const Job& job, Tally& t) const {
@@ -178,7 +198,9 @@ public:
         for (auto& v : sc.ps) v.assign(E_ * K_, 0.0);
         for (std::uint64_t i = job.first; i < job.first + job.count; ++i) {
             for (auto& v : sc.ps) std::fill(v.begin(), v.end(), 0.0);
-            trace(Rng(s_.seed, job.is_short ? 2 : 1, i), job.is_short, t, sc);
+            // (the bands' azimuths: a stream of their own, streams 3 and 4)
+            Rng side(s_.seed, job.is_short ? 4 : 3, i);
+            trace(Rng(s_.seed, job.is_short ? 2 : 1, i), side, job.is_short, t, sc);
             for (int f = 0; f < 2; ++f)
                 for (std::size_t e = 0; e < E_; ++e)
                     for (std::size_t k = 0; k < K_; ++k) {
@@ -208,7 +230,7 @@ private:
         return lowest;
     }
 
-    void trace(Rng rng, bool is_short, Tally& t, Scratch& sc) const {
+    void trace(Rng rng, Rng& side, bool is_short, Tally& t, Scratch& sc) const {
         const double d = s_.thickness, g = s_.g;
         const bool iso = std::fabs(g) < 1e-9;
         const long short_max = s_.short_orders;
@@ -270,7 +292,11 @@ private:
                     break;
                 }
             }
-            if (n >= 2 && n <= s_.radiance_orders) next_event(t, n, z, ux, uz, w);
+            if (n >= 2 && n <= s_.radiance_orders) {
+                double att[32];  // the top face's exp(-z / mu_j), for the bands
+                next_event(t, n, z, ux, uz, w, att);
+                if (B_ > 0 && z < 40.0) next_event_bands(t, side, n, x, y, z, ux, uy, uz, w, att);
+            }
             // Henyey-Greenstein deflection about the current direction.
             const double xi = rng.uniform();
             double ct;
@@ -313,7 +339,8 @@ private:
     // The radiance the scattering event of order n at depth z sends straight to each face at the
     // inside cosines mu_j: p(u . w_j) exp(-distance / mu_j) / mu_j, per eta times its weight. The
     // azimuth of w_j is fixed (phi = 0): at normal incidence the expectation does not depend on it.
-    void next_event(Tally& t, long n, double z, double ux, double uz, const double* w) const {
+    // att: the top face's exp(-z / mu_j) (where z < 40).
+    void next_event(Tally& t, long n, double z, double ux, double uz, const double* w, double* att) const {
         const int J = int(ne_mu_.size());
         const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
         const double g = s_.g;
@@ -325,13 +352,54 @@ private:
                 // w_j = (sin_j, 0, -mu_j) towards the top face (depth decreasing), +mu_j towards the bottom
                 const double c = ux * ne_sin_[j] + (face == 0 ? -uz : uz) * ne_mu_[j];
                 const double den = 1.0 + g * g - 2.0 * g * c;
-                q[j] = f * hg_norm_ / (den * std::sqrt(den)) * std::exp(-dist * ne_inv_mu_[j]) * ne_inv_mu_[j];
+                const double a = std::exp(-dist * ne_inv_mu_[j]);
+                if (face == 0) att[j] = a;
+                q[j] = f * hg_norm_ / (den * std::sqrt(den)) * a * ne_inv_mu_[j];
             }
             for (std::size_t e = 0; e < E_; ++e) {
                 if (!(w[e] > 0)) continue;
                 double* b = t.face[face][e].ne.data() + std::size_t(n) * J;
                 for (int j = 0; j < J; ++j) b[j] += w[e] * q[j];
             }
+        }
+    }
+
+    // Band of an exit at squared distance r2 from the entry point (mean free paths^2).
+    int band_of(double r2) const {
+        int b = 0;
+        while (b < B_ - 1 && r2 >= band_edge2_[std::size_t(b)]) ++b;
+        return b;
+    }
+
+    // next_event's estimate for the top face, at an azimuth phi of its own (stream `side`), each
+    // node's radiance tallied in the band where its direction w_j = (sin_j cos phi, sin_j sin phi,
+    // -mu_j) meets the face: at (x, y) + z tan_j (cos phi, sin phi).
+    void next_event_bands(Tally& t, Rng& side, long n, double x, double y, double z, double ux, double uy, double uz,
+                          const double* w, const double* att) const {
+        const int J = int(ne_mu_.size());
+        const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
+        const double g = s_.g;
+        double a, b, rr;
+        do {
+            a = 2.0 * side.uniform() - 1.0;
+            b = 2.0 * side.uniform() - 1.0;
+            rr = a * a + b * b;
+        } while (rr > 1.0 || rr < 1e-300);
+        const double inv_r = 1.0 / std::sqrt(rr), cp = a * inv_r, sp = b * inv_r;
+        const double u_phi = ux * cp + uy * sp;
+        double q[32];
+        int band[32];
+        for (int j = 0; j < J; ++j) {
+            const double c = u_phi * ne_sin_[j] - uz * ne_mu_[j];
+            const double den = 1.0 + g * g - 2.0 * g * c;
+            q[j] = f * hg_norm_ / (den * std::sqrt(den)) * att[j] * ne_inv_mu_[j];
+            const double o = z * ne_tan_[j], px = x + o * cp, py = y + o * sp;
+            band[j] = band_of(px * px + py * py);
+        }
+        for (std::size_t e = 0; e < E_; ++e) {
+            if (!(w[e] > 0)) continue;
+            double* base = t.face[0][e].ne_band.data() + std::size_t(n) * B_ * J;
+            for (int j = 0; j < J; ++j) base[band[j] * J + j] += w[e] * q[j];
         }
     }
 
@@ -363,6 +431,15 @@ private:
         const double r = std::sqrt(x * x + y * y);
         const double log_r = r > 0 ? std::log(r) : -std::numeric_limits<double>::infinity();
         const int a = std::min(na - 1, int(mu * na));
+        if (which == 0 && B_ > 0) {
+            const int band = band_of(x * x + y * y);
+            for (std::size_t k = lowest; k < K_; ++k) {
+                const double c = w_exit * pw[k];
+                face.band_multi[k * B_ + band] += c;
+                face.band_r[k * B_ + band] += c * r;
+                if (n > s_.radiance_orders) face.band_arrivals[(k * B_ + band) * na + a] += w_arrival * f * pw[k];
+            }
+        }
         for (std::size_t k = lowest; k < K_; ++k) {
             const double c = w_exit * pw[k];
             const double t = (log_r + log_scale_[k] - log_rho0_) * bins_per_ln_;
@@ -382,7 +459,9 @@ private:
     std::size_t K_, E_;
     std::vector<double> log_albedo_, log_scale_;
     double inv_eta_[kMaxEtas] = {};
-    std::vector<double> ne_mu_, ne_inv_mu_, ne_sin_;
+    std::vector<double> ne_mu_, ne_inv_mu_, ne_sin_, ne_tan_;
+    int B_ = 0;                        // exit-distance bands (0: off)
+    std::vector<double> band_edge2_;   // their squared outer edges
     double hg_norm_ = 0;
     double ux0_ = 0, uz0_ = 1, low_factor_ = 1, log_rho0_ = 0, bins_per_ln_ = 1;
 };
@@ -434,6 +513,27 @@ void finish_face(const FaceTally& t, const FaceTally* sq_short, const McSettings
             const double p = std::exp(n * la);
             if (p < 1e-30) break;
             for (int j = 0; j < J; ++j) out.radiance[k * J + j] += p * t.ne[std::size_t(n) * J + j] / nf;
+        }
+    }
+    // The bands (top face): as above, per band.
+    const std::size_t B = t.band_multi.size() / std::max<std::size_t>(1, K);
+    out.band_multi.resize(t.band_multi.size());
+    out.band_r.resize(t.band_r.size());
+    for (std::size_t i = 0; i < t.band_multi.size(); ++i) {
+        out.band_multi[i] = t.band_multi[i] / nf;
+        out.band_r[i] = t.band_r[i] / nf;
+    }
+    out.band_arrivals.resize(t.band_arrivals.size());
+    for (std::size_t i = 0; i < t.band_arrivals.size(); ++i) out.band_arrivals[i] = t.band_arrivals[i] / nf;
+    out.band_radiance.assign(B > 0 && N > 0 ? K * B * J : 0, 0.0);
+    for (std::size_t k = 0; k < K && B > 0 && N > 0; ++k) {
+        const double la = s.albedos[k] > 0 ? std::log(s.albedos[k]) : -std::numeric_limits<double>::infinity();
+        for (int n = 2; n <= N; ++n) {
+            const double p = std::exp(n * la);
+            if (p < 1e-30) break;
+            const double* src = t.ne_band.data() + std::size_t(n) * B * J;
+            double* dst = out.band_radiance.data() + k * B * J;
+            for (std::size_t i = 0; i < B * std::size_t(J); ++i) dst[i] += p * src[i] / nf;
         }
     }
 }

@@ -35,6 +35,7 @@ public:
     Rgb exit_factor(double cos_o) const override;
     Rgb entry_factor(double cos_i) const override;
     Rgb entry_shift(double cos_i) const override;
+    bool exit_weight(double cos_o, RadialWeight* w) const override;
     bool includes_single_scattering() const override { return false; }
     std::string describe() const override { return "exact"; }
     // Thin geometry: the tables' slabs where they cover a channel (make_exact_slab_profiles),
@@ -60,6 +61,12 @@ private:
     std::string slab_gap_;
     double eta_ = 1;
     double cutoff_ = 0;
+    // exit_weight's table: per RadialWeight node i (scale = mean_free_path()), band cosine j and
+    // channel c, the ratio normalised to average 1 against Rd: band_w_[(i * J + j) * 3 + c].
+    std::vector<double> band_cos_, band_w_;
+    int band_r_nodes_ = 0;
+    double band_inv_scale_ = 1;
+    void build_exit_weights();
     std::vector<std::string> notes_;
 };
 

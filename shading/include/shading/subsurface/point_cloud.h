@@ -81,12 +81,14 @@ public:
     // (scene units) from x skipped. An aggregate is the node's flux times Rd at its centre
     // plus the second-order term of Rd's Taylor expansion about the centre, (1/2) tr(H Sigma)
     // with Sigma the node's covariance: the error falls from O(angle^2) to O(angle^4).
-    // `visited` (optional) counts nodes opened.
+    // `visited` (optional) counts nodes opened. `weight` (optional): Rd(r) times weight(r) per
+    // channel (RadialProfile::exit_weight).
     Rgb far_exitance(const RdProfile& rd, const Vec3& x, double r0, double h, double max_angle, double cutoff,
-                     std::size_t* visited = nullptr) const;
+                     std::size_t* visited = nullptr, const RadialWeight* weight = nullptr) const;
     // The same sum over every point with the profile's exact callable, no aggregation and no
     // cutoff: the reference.
-    Rgb far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h) const;
+    Rgb far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h,
+                           const RadialWeight* weight = nullptr) const;
     // Thin geometry (shading/DIPOLE.md section 6a): M(x) at a point of unit normal nx and
     // thickness d, less the same face's near field: the points whose normal faces the same way
     // as nx (dot > 0) integrated with `same` (of the 3-D distance) and the window, as
@@ -96,10 +98,11 @@ public:
     // (the integral of (1 - w) T) times the (1 - w)-weighted mean of their E_t. Nodes are
     // aggregated per side: by their normal cone (or, for a one-sheeted node crossing the
     // plane of nx, its axis); a node holding both faces of a sheet is opened. `opposite`
-    // (optional): the opposite face's part of the result.
+    // (optional): the opposite face's part of the result. `weight` (optional): on `same` only.
     Rgb far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx, double d,
                            double r0, double h, double max_angle, const Rgb& near_opposite,
-                           std::size_t* visited = nullptr, Rgb* opposite = nullptr) const;
+                           std::size_t* visited = nullptr, Rgb* opposite = nullptr,
+                           const RadialWeight* weight = nullptr) const;
     // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
     Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                  double d, double r0, double h, const Rgb& near_opposite) const;
@@ -116,10 +119,11 @@ public:
     // (level_near x near_irradiance). Aggregates place each channel's flux at the node's centre
     // plus its flux-weighted mean shift. Otherwise as far_exitance.
     Rgb far_exitance_shifted(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
-                             double cutoff, Rgb* near_irradiance, std::size_t* visited = nullptr) const;
+                             double cutoff, Rgb* near_irradiance, std::size_t* visited = nullptr,
+                             const RadialWeight* weight = nullptr) const;
     // The same without aggregation or cutoff, with the profile's exact callable: the reference.
     Rgb far_exitance_shifted_exact(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h,
-                                   Rgb* near_irradiance) const;
+                                   Rgb* near_irradiance, const RadialWeight* weight = nullptr) const;
     // The lookup level for far_exitance_shifted: the coarsest of x's own and of the points
     // upstream of x (x less the first two images' offsets of its nearest point's shifts).
     int lookup_level_shifted(const Vec3& x) const;
@@ -209,11 +213,11 @@ private:
     template <bool kSided>
     Rgb far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,
                 double h, double max_angle, double cut_same2, const Rgb& near_opposite, std::size_t* visited,
-                Rgb* opposite) const;
+                Rgb* opposite, const RadialWeight* weight) const;
     // far_exitance_exact and far_exitance_sided_exact.
     template <bool kSided>
     Rgb exact_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,
-                  double h, const Rgb& near_opposite) const;
+                  double h, const Rgb& near_opposite, const RadialWeight* weight) const;
     double spacing_ = 0;
     double view_spacing_ = 0;
     std::vector<SurfacePoint> points_;
@@ -239,7 +243,7 @@ private:
     void build_shifts();
     template <bool kExact>
     Rgb shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
-                    double cut2, Rgb* near_irradiance, std::size_t* visited) const;
+                    double cut2, Rgb* near_irradiance, std::size_t* visited, const RadialWeight* weight) const;
     double thinnest_ = std::numeric_limits<double>::infinity();
 };
 

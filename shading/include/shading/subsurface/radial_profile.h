@@ -47,6 +47,17 @@ public:
         (void)cos_i;
         return Rgb(0.0);
     }
+    // The exit distribution's change with distance from the entry point: light leaving near it
+    // leaves closer to the normal than the exitance-weighted mean, a few transport mfp out more
+    // obliquely (DIPOLE.md 10.7). Fills `w` for a viewer at outside cosine cos_o so that
+    // pixel = exit_factor(cos_o) x the sum of Rd(r) w(r) A E_t, w averaging 1 against Rd (a
+    // uniformly lit half-space renders as without it); false (w untouched): no such weight
+    // (the dipole; the exact profile without distance bands).
+    virtual bool exit_weight(double cos_o, RadialWeight* w) const {
+        (void)cos_o;
+        (void)w;
+        return false;
+    }
     // Whether rd already stands for single scattering too (the dipole): then the finish does not
     // add the single-scattering BRDF by default.
     virtual bool includes_single_scattering() const = 0;

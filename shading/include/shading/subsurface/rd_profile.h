@@ -4,6 +4,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cmath>
 #include <cstring>
 #include <functional>
 #include <memory>
@@ -94,6 +95,57 @@ private:
     std::vector<double> node_r_;
     std::vector<Rgb> cumulative_;  // without a disc callable: the integral up to each node
     std::vector<double> gain2_;
+};
+
+// A weight per channel on a radial profile for one lookup, varying slowly with r: the exit
+// distribution's change with distance from the entry point (RadialProfile::exit_weight;
+// DIPOLE.md 10.7). Linear in s = 1 + r / scale between nodes at s = 2^e (1 + q/4), q < 4 (four
+// per octave of s: 0, scale / 4, ... uniform near 0, logarithmic far out), found from the bits
+// of s like RdProfile's nodes; node 0 at r = 0; the last node's value held beyond it.
+struct RadialWeight {
+    static constexpr int kPerOctave = 4;
+    static constexpr int kMaxNodes = kPerOctave * 40 + 1;
+    double inv_scale = 1;
+    int nodes = 1;            // nodes in use, 1 .. kMaxNodes
+    double w[kMaxNodes][3];   // per node, per channel
+
+    // r / scale at node i
+    static double node_x(int i) { return std::ldexp(1.0 + double(i % kPerOctave) / kPerOctave, i / kPerOctave) - 1.0; }
+    double at(int c, double r) const {
+        if (nodes < 2) return w[0][c];
+        int i;
+        const double t = locate(r, &i);
+        return w[i][c] + (w[i + 1][c] - w[i][c]) * t;
+    }
+    Rgb at(double r) const {
+        if (nodes < 2) return Rgb(w[0][0], w[0][1], w[0][2]);
+        int i;
+        const double t = locate(r, &i);
+        const double* a = w[i];
+        const double* b = w[i + 1];
+        return Rgb(a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t);
+    }
+
+private:
+    // The segment [i, i + 1] holding r and the fraction of it (nodes >= 2); beyond the last
+    // node (or for a bad r) i = nodes - 2 with fraction 1.
+    double locate(double r, int* i) const {
+        const double s = 1.0 + r * inv_scale;
+        if (!(s >= 1.0 && s < 1e300)) {
+            *i = nodes - 2;
+            return 1.0;
+        }
+        std::uint64_t bits;
+        std::memcpy(&bits, &s, sizeof bits);
+        const std::uint64_t m = bits & ((std::uint64_t(1) << 52) - 1);
+        const int k = int((bits >> 52) - 1023) * kPerOctave + int(m >> 50);
+        if (k >= nodes - 1) {
+            *i = nodes - 2;
+            return 1.0;
+        }
+        *i = k;
+        return double(m & ((std::uint64_t(1) << 50) - 1)) * 0x1p-50;
+    }
 };
 
 }  // namespace shading

@@ -34,11 +34,12 @@ namespace shading {
 
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
-constexpr std::uint32_t kProfileGeneratorVersion = 4;
+constexpr std::uint32_t kProfileGeneratorVersion = 5;
 // The .ssp layout's version (3: the checksum at bytes 24..31 covers the whole file, header
-// included; 4: each record holds the oblique beams' exit shifts; DIPOLE.md 10.4). Files of another version are refused; `sstool build --if-stale`
-// (make brdf-data) rebuilds them.
-constexpr std::uint32_t kProfileFormatVersion = 4;
+// included; 4: each record holds the oblique beams' exit shifts; 5: and the exit distribution per
+// distance band; DIPOLE.md 10.4). Files of another version are refused; `sstool build
+// --if-stale` (make brdf-data) rebuilds them.
+constexpr std::uint32_t kProfileFormatVersion = 5;
 
 class ProfileError : public std::runtime_error {
 public:
@@ -64,6 +65,11 @@ struct ProfileBuildSettings {
     double short_orders = 20;          // ... stopped after this many transport events: 20 / (1 - g) events
     double roulette_order = 250;       // path-length roulette from 250 / (1 - g) events on
     double oblique_fraction = 0.06;    // photons at each oblique incidence, relative to `photons`
+    // The exit distribution per distance from the entry point (semi-infinite tables only; empty
+    // for slabs): outer edges of the bands [0, e_0), ..., [e_last, inf) in transport mfp of the
+    // albedo-1 medium (mean free paths e (1 - g)^-1 at each g node). DIPOLE.md 10.7.
+    std::vector<double> exit_bands{0.25, 0.5, 1, 2, 4, 8, 16};
+    int band_count() const { return exit_bands.empty() ? 0 : int(exit_bands.size()) + 1; }
     std::uint64_t seed = 1;
     int threads = 0;                   // 0: all hardware threads
     std::string validate() const;
@@ -89,6 +95,14 @@ struct FaceRecord {
     // beam's tangential direction at cos_inside[i], transport mfp (0 at normal incidence).
     std::vector<double> shift;
     std::vector<double> profile;    // Rd at the radial nodes (per transport mfp^2)
+    // Per distance band b (ProfileBuildSettings::exit_bands; empty without bands): the mean
+    // distance of the band's exits from the entry point (transport mfp), and the band's exit
+    // distribution against the whole face's at each inside cosine angle_cosine(j):
+    // band_ratio[b * angle_nodes + j] = (I_b(mu_j) / M_b) / (I(mu_j) / M), I the inside radiance
+    // (sum over the bands), M each one's exitance implied by it (ss_detail::exit_sum). The
+    // bands' ratios weighted by their M_b / M average to 1 at every cosine. 1 where a band has
+    // too few exits to say (then the band inside it).
+    std::vector<double> band_rho, band_ratio;
 };
 
 // The tables of one file: axes and records. Radial node 0 is rho = 0 (the disc's mean), node
@@ -163,6 +177,14 @@ public:
     // along the refracted beam's tangential direction, for light arriving at outside cosine
     // cos_i: interpolated like entry_factor (0 at normal incidence).
     double entry_shift(double cos_i) const;
+    // The exit distribution's change with distance (semi-infinite tables with distance bands;
+    // DIPOLE.md 10.7): exit_bands() nodes j at the inside cosines exit_band_cosine(j); at
+    // distance rho (transport mfp) from the entry point the radiance toward inside cosine mu_j
+    // is exit_factor's times exit_band_ratio(rho, j): the bands' ratios, linear in ln rho
+    // between their mean distances (held beyond the first and the last). 0 nodes: no bands.
+    int exit_band_nodes() const { return band_rho_.empty() ? 0 : int(band_nodes_); }
+    double exit_band_cosine(int j) const;
+    double exit_band_ratio(double rho, int j) const;
 
 private:
     double interpolate_inside(const std::vector<double>& v, double cos_o) const;
@@ -173,6 +195,8 @@ private:
     std::vector<double> rho_, lnv_, cum_;  // nodes, ln Rd at the nodes, disc integral at the nodes
     double tail_k_ = 0, tail_a_ = 0;       // beyond the last node
     std::vector<double> angle_, ci_, incidence_, shift_;
+    std::vector<double> band_rho_, band_ratio_;  // the records' band data, mixed like the angles
+    std::size_t band_nodes_ = 0;
     double angle_norm_ = 1;
 };
 

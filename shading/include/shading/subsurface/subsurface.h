@@ -197,9 +197,18 @@ public:
                  const Rgb& irradiance_here, double thickness) const;
 
 private:
+    // The mean of the exit weight w over the near field of spacing h (its share of Rd, (1 -
+    // window) Rd 2 pi r on [0, 3h]; 8-point Gauss-Legendre on [0, h/8], [h/8, h/2], [h/2, h]
+    // and the ramp [h, 3h]): the factor of level_near's part.
+    Rgb near_weight(const RadialWeight& w, double h) const;
+    // The half-space's exit weight for a slab's own face (RadialProfile::exit_weight), faded in
+    // per channel with the thickness d: whole from 8 transport mfp on, none below 4 (a thin
+    // slab's exits spread otherwise). nullptr: no weight for any channel.
+    const RadialWeight* slab_weight(double cos_o, double d, RadialWeight* w) const;
     // One thickness node's radiance at x (cos_o > 0), before interpolation.
     Rgb slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n, double cos_o,
-                      const Rgb& irradiance_here, int level, std::size_t* visited) const;
+                      const Rgb& irradiance_here, int level, std::size_t* visited,
+                      const RadialWeight* weight) const;
     Dipole dipole_;
     SubsurfaceSettings settings_;
     std::shared_ptr<const RadialProfile> model_;

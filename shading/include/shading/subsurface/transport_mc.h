@@ -74,6 +74,13 @@ struct McSettings {
     int radiance_nodes = 8;
     // 0.5 (1 - cos(pi (j + 1/2) / (n - 1/2))), j < n: increasing, the last 1
     std::vector<double> radiance_cosines() const;
+    // The top face's exit distribution per distance from the entry point: the outer edges
+    // (mean free paths, increasing, > 0) of bands [0, e_0), [e_0, e_1), ..., [e_last, inf);
+    // empty: off. Needs the radiance estimate (the band of a next-event estimate is where its
+    // direction meets the face, at an azimuth drawn from a stream of its own, so the photons'
+    // paths and every other tally stay as without bands). See McFace::band_*.
+    std::vector<double> exit_bands;
+    int band_count() const { return exit_bands.empty() ? 0 : int(exit_bands.size()) + 1; }
     // Empty if valid, else the first problem.
     std::string validate() const;
 };
@@ -99,6 +106,13 @@ struct McFace {
     // Radiance reaching the face from inside at radiance_cosines()[j], uniform illumination, per
     // unit entering flux density, orders 2 .. radiance_orders: radiance[k * radiance_nodes + j].
     std::vector<double> radiance;
+    // Per exit-distance band b < B = McSettings::band_count() (top face only; else empty), per
+    // albedo k: the multiple-scattering exits' weight band_multi[k * B + b] and weight times
+    // distance (mean free paths) band_r[k * B + b]; the next-event radiance of the light
+    // leaving within the band band_radiance[(k * B + b) * J + j] (as `radiance`: its sum over
+    // the bands) and the high orders' arrivals band_arrivals[(k * B + b) * angle_bins + a] (as
+    // `arrivals`).
+    std::vector<double> band_multi, band_r, band_radiance, band_arrivals;
 };
 
 struct McResult {
