@@ -226,18 +226,24 @@ TEST(TransportMc, InvalidSettingsAreRejected) {
 
 namespace {
 
+// The analog walks' random numbers: xorshift64*, uniform in (0, 1).
+struct Xorshift {
+    std::uint64_t state;
+    explicit Xorshift(std::uint64_t seed) : state(seed) {}
+    double operator()() {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        return (double((state * 2685821657736338717ULL) >> 11) + 0.5) * (1.0 / 9007199254740992.0);
+    }
+};
+
 // An analog walk for the exit shift, sharing nothing with transport_mc.cpp: isotropic scattering
 // in the half-space z > 0 (index matched), absorption by survival with probability alpha, a
 // beam entering at the origin along (sin, 0, cos). Returns the mean x of the exits after two or
 // more scatterings, and its standard error.
 void analog_exit_shift(double alpha, double cos_in, int photons, double* mean, double* se) {
-    std::uint64_t state = 0x9e3779b97f4a7c15ULL;
-    auto uniform = [&]() {  // xorshift64*, (0, 1)
-        state ^= state >> 12;
-        state ^= state << 25;
-        state ^= state >> 27;
-        return (double((state * 2685821657736338717ULL) >> 11) + 0.5) * (1.0 / 9007199254740992.0);
-    };
+    Xorshift uniform(0x9e3779b97f4a7c15ULL);
     const double kTwoPi = 6.283185307179586;
     double sum = 0, sum2 = 0;
     long n = 0;
@@ -311,13 +317,7 @@ namespace {
 // scatterings: their number, and the number leaving at a cosine in [cos_lo, cos_hi].
 void analog_band_cone(double alpha, const std::vector<double>& edges, double cos_lo, double cos_hi, int photons,
                       std::vector<double>* all, std::vector<double>* cone) {
-    std::uint64_t state = 0x2545f4914f6cdd1dULL;
-    auto uniform = [&]() {  // xorshift64*, (0, 1)
-        state ^= state >> 12;
-        state ^= state << 25;
-        state ^= state >> 27;
-        return (double((state * 2685821657736338717ULL) >> 11) + 0.5) * (1.0 / 9007199254740992.0);
-    };
+    Xorshift uniform(0x2545f4914f6cdd1dULL);
     const double kTwoPi = 6.283185307179586;
     all->assign(edges.size() + 1, 0.0);
     cone->assign(edges.size() + 1, 0.0);

@@ -88,6 +88,19 @@ struct Rng {
         return r;
     }
     double uniform() { return uniform_double(next()); }  // [0, 1)
+    // cos and sin of a uniform azimuth: a point uniform in the unit disc (rejection), without
+    // trigonometric calls.
+    void azimuth(double* c, double* s) {
+        double a, b, rr;
+        do {
+            a = 2.0 * uniform() - 1.0;
+            b = 2.0 * uniform() - 1.0;
+            rr = a * a + b * b;
+        } while (rr > 1.0 || rr < 1e-300);
+        const double inv_r = 1.0 / std::sqrt(rr);
+        *c = a * inv_r;
+        *s = b * inv_r;
+    }
 };
 
 // ---------------------------------------------------------------- tallies
@@ -307,16 +320,8 @@ private:
                 ct = std::clamp((1.0 + g * g - q * q) / (2.0 * g), -1.0, 1.0);
             }
             const double st = std::sqrt(std::max(0.0, 1.0 - ct * ct));
-            // Azimuth: a point uniform in the unit disc (rejection) gives cos and sin of a
-            // uniform angle without trigonometric calls.
-            double a, b, rr;
-            do {
-                a = 2.0 * rng.uniform() - 1.0;
-                b = 2.0 * rng.uniform() - 1.0;
-                rr = a * a + b * b;
-            } while (rr > 1.0 || rr < 1e-300);
-            const double inv_r = 1.0 / std::sqrt(rr);
-            const double cp = a * inv_r, sp = b * inv_r;
+            double cp, sp;
+            rng.azimuth(&cp, &sp);
             double nx, ny, nz;
             if (std::fabs(uz) > 0.99999) {
                 nx = st * cp;
@@ -379,13 +384,8 @@ private:
         const int J = int(ne_mu_.size());
         const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
         const double g = s_.g;
-        double a, b, rr;
-        do {
-            a = 2.0 * side.uniform() - 1.0;
-            b = 2.0 * side.uniform() - 1.0;
-            rr = a * a + b * b;
-        } while (rr > 1.0 || rr < 1e-300);
-        const double inv_r = 1.0 / std::sqrt(rr), cp = a * inv_r, sp = b * inv_r;
+        double cp, sp;
+        side.azimuth(&cp, &sp);
         const double u_phi = ux * cp + uy * sp;
         double q[32];
         int band[32];
