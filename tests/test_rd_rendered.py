@@ -32,7 +32,7 @@ def _worst_to_10(extra: str) -> float:
     mfp = float(1.0 / (sp[0] + sa[0]))
     size = float(wb.RD_MFP[-1])
     text = wb.spot_scene(ss[0], sa[0], 0.0, 1.3, mfp, extra)
-    r = runner.render(text, "fork", width=256, height=256, float_exr=True, threads=2)
+    r = runner.render(text, "fork", width=512, height=512, float_exr=True, threads=2)
     img = r.image[..., :3].astype(np.float64)
     assert np.isfinite(img).all()
     edges = wb.RD_MFP[wb.RD_MFP <= 10.0]  # the annuli from 1 to 9.65 mfp'

@@ -305,7 +305,7 @@ def sphere_rows(args, fork) -> list[dict]:
 
 SPOT = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 }}
-camera {{ orthographic location <{half}, {half}, 80> direction <0, 0, -1> right <{size}, 0, 0> up <0, {size}, 0> }}
+camera {{ orthographic location <0, 0, 80> direction <0, 0, -1> right <{width}, 0, 0> up <0, {width}, 0> }}
 light_source {{ <0, 0, 1000> rgb 1 parallel point_at <0, 0, 0> }}
 difference {{
   box {{ <-{block}, -{block}, 0.002>, <{block}, {block}, 0.003> }}
@@ -332,13 +332,13 @@ RD_BLOCK = 45.0
 
 
 def annulus_means(img: np.ndarray, size: float, edges: np.ndarray, sub: int = 4) -> np.ndarray:
-    """Means of ``img`` (rows from y = size down to 0, columns from x = 0 to size: one quadrant
-    about the spot) over the annuli ``edges`` (the image's units), each pixel weighted by the fraction of its
-    area inside (``sub`` x ``sub`` points per pixel)."""
+    """Means of ``img`` (centred on the spot: rows from y = size down to -size, columns from x =
+    -size to size) over the annuli ``edges`` (the image's units), each pixel weighted by the
+    fraction of its area inside (``sub`` x ``sub`` points per pixel)."""
     n = img.shape[0]
-    px = size / n
+    px = 2 * size / n
     off = (np.arange(sub) + 0.5) / sub
-    cx = (np.arange(n)[:, None] + off[None, :]).ravel() * px          # sub-points along x
+    cx = (np.arange(n)[:, None] + off[None, :]).ravel() * px - size   # sub-points along x
     cy = size - (np.arange(n)[:, None] + off[None, :]).ravel() * px   # along y, row 0 at the top
     rr = np.hypot(cx[None, :], cy[:, None]).reshape(n, sub, n, sub)   # (row, sub, col, sub)
     out = np.zeros((img.shape[2], edges.size - 1))
@@ -355,16 +355,19 @@ def spot_scene(sigma_s: float, sigma_a: float, g: float, eta: float, mfp: float,
     grey = lambda v: f"<{v:.10g}, {v:.10g}, {v:.10g}>"
     dipole = (f"sigma_s {grey(sigma_s)} sigma_a {grey(sigma_a)} anisotropy {g} ior {eta} "
               f"mm_per_unit {mfp:.10g} sample_spacing {RD_SPACING}{' ' + extra if extra else ''}")
-    return SPOT.format(half=RD_MFP[-1] / 2, size=RD_MFP[-1], block=RD_BLOCK, spot=RD_HOLE, dipole=dipole)
+    return SPOT.format(width=2 * RD_MFP[-1], block=RD_BLOCK, spot=RD_HOLE, dipole=dipole)
 
 
 def rd_rows(args, fork) -> list[dict]:
     """The radial profile as rendered, per channel in its own transport mean free paths (mfp'):
     each channel is rendered as a grey medium of its coefficients with ``mm_per_unit`` = its
     mfp', so every scene is the same in units: a block 90 x 90 x 45 lit straight down through a
-    round hole of radius 0.5 (a black ``no_image`` plate), seen straight down, one quadrant out to
-    30 (``sample_spacing`` RD_SPACING: the automatic spacing, half a mean free path, would put a
-    few samples in the hole). Annulus means (RD_MFP) against ``volume_ref.spot``."""
+    round hole of radius 0.5 (a black ``no_image`` plate), seen straight down, centred, out to 30
+    each way (``sample_spacing`` RD_SPACING: the automatic spacing, half a mean free path, would
+    put a few samples in the hole). Annulus means (RD_MFP) over the four quadrants against
+    ``volume_ref.spot``. Centred, not one quadrant: the sampler coarsens what the camera does
+    not see, and the hole's three unseen quarters then lit the far annuli of a corner view
+    +34 % too bright at 26 mfp' (DIPOLE.md 10.7)."""
     rows = []
     n = args.rd_pixels
     size, a = float(RD_MFP[-1]), RD_HOLE
@@ -608,7 +611,7 @@ def main(argv=None) -> int:
     ap.add_argument("--radii", default="1,3,10", help="sphere radii in diffusion lengths")
     ap.add_argument("--samples", type=int, default=512, help="random walks per pixel (spheres: a quarter, at 16 pixels per reference pixel)")
     ap.add_argument("--paths", type=int, default=200000, help="reference paths per channel")
-    ap.add_argument("--rd-pixels", type=int, default=512, help="the rd scene's quadrant, pixels across")
+    ap.add_argument("--rd-pixels", type=int, default=512, help="the rd scene's image (centred on the spot), pixels across")
     ap.add_argument("--rd-paths", type=int, default=40000, help="the rd scene's reference paths per channel")
     ap.add_argument("--quick", action="store_true", help="one medium, eta, g and angle: a smoke run")
     ap.add_argument("--fork", default="fork")
