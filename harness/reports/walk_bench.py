@@ -454,11 +454,11 @@ METHODS = (("profile", "profile (default)", "tab:red"), ("directional", "directi
 def report_args(quick: bool, fork: str = "fork") -> argparse.Namespace:
     """walk_bench's arguments for ``make report``: Skin1 at g 0; the edge (ior 1.3, light at 0, 45,
     70 degrees; quick: 45), the sphere of radius 3 diffusion lengths at ior 1 (the reference has
-    its image there) and the rd scene at ior 1.3."""
+    its image there) and the rd scene at ior 1.3 (centred: 512 pixels across, as the bench)."""
     return argparse.Namespace(media=["Skin1"], eta=[1.3], g=[0.0], angles=[45] if quick else [0, 45, 70],
                               thickness=[1.0], radii=[3.0], samples=32 if quick else 128,
                               paths=10_000 if quick else 200_000, rd_paths=10_000 if quick else 40_000,
-                              rd_pixels=128 if quick else 256, fork=fork)
+                              rd_pixels=256 if quick else 512, fork=fork)
 
 
 def report_rows(quick: bool = False, fork: str = "fork") -> list[dict]:
