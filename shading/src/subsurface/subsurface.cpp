@@ -276,8 +276,9 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
     std::size_t visited = 0;
-    // The exit distribution's change with distance (DIPOLE.md 10.7): Rd weighted per distance
-    // for this view; the near field (within about 3 h of x) at the weight of distance h.
+    // The exit distribution's change with distance (DIPOLE.md 10.3, 10.7): Rd weighted per
+    // distance for this view; the near field's part (within 3 h of x) by the weight's mean over
+    // it (near_weight).
     RadialWeight weight;
     const RadialWeight* wt = model_->exit_weight(cos_o, &weight) ? &weight : nullptr;
     if (cloud.directional()) {
