@@ -67,7 +67,7 @@ struct ProfileBuildSettings {
     double oblique_fraction = 0.06;    // photons at each oblique incidence, relative to `photons`
     // The exit distribution per distance from the entry point (semi-infinite tables only; empty
     // for slabs): outer edges of the bands [0, e_0), ..., [e_last, inf) in transport mfp of the
-    // albedo-1 medium (mean free paths e (1 - g)^-1 at each g node). DIPOLE.md 10.7.
+    // albedo-1 medium (mean free paths e (1 - g)^-1 at each g node). DIPOLE.md 10.3, 10.7.
     std::vector<double> exit_bands{0.25, 0.5, 1, 2, 4, 8, 16};
     int band_count() const { return exit_bands.empty() ? 0 : int(exit_bands.size()) + 1; }
     std::uint64_t seed = 1;
