@@ -284,11 +284,8 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     std::vector<double> I(J, 0.0);
     for (int j = 0; j < J; ++j) I[j] = f.radiance.empty() ? 0.0 : f.radiance[std::size_t(k) * J + j];
     {
-        double flux = 0, rms = 0;
         const HighOrders c = fit_high_orders(f.arrivals.data() + std::size_t(k) * na, na);
-        flux = c.flux;
-        rms = c.rms;
-        if (flux > 0.1 * rec.multi) diag.worst_angle_rms = std::max(diag.worst_angle_rms, rms);
+        if (c.flux > 0.1 * rec.multi) diag.worst_angle_rms = std::max(diag.worst_angle_rms, c.rms);
         for (int j = 0; j < J; ++j) I[j] += c.at(nodes[j]);
     }
     // Exitance implied by I: 2 pi integral of Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o; against
