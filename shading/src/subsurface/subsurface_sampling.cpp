@@ -398,6 +398,29 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
             }
             tail[li] = me;
         }
+        // Lines with no sample beside a split one: the surface may pass through their cells
+        // where their own line missed it or grazed it (a silhouette seen at a coarse level: on
+        // a blob of two spheres of radius 0.71 sampled from 0.176 down to 0.022, 3.6 % of its
+        // area had no sample). They are split too, and every crossing of their sub-lines is new
+        // surface.
+        {
+            std::vector<char> split(line_end - line_first, 0);
+            for (int p : parents) split[std::size_t(p) - line_first] = 1;
+            const std::size_t marked_lines = parents.size();
+            for (std::size_t pi = 0; pi < marked_lines; ++pi) {
+                const Line& L = lines_[parents[pi]];
+                for (int di = -1; di <= 1; ++di)
+                    for (int dj = -1; dj <= 1; ++dj) {
+                        const int li = find(k, L.axis, L.i + di, L.j + dj);
+                        if (li < 0 || split[std::size_t(li) - line_first]) continue;
+                        bool sampled = false;
+                        for (int m = 0; m < lines_[li].count && !sampled; ++m) sampled = sample_of(lines_[li], m) >= 0;
+                        if (sampled) continue;
+                        split[std::size_t(li) - line_first] = 1;
+                        parents.push_back(li);
+                    }
+            }
+        }
         if (active_ + 3 * marked > max_points) {
             report->capped = true;
             break;
@@ -470,6 +493,29 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                                 samples_[first_sample + at++] = q;
                             }
                             ++n;
+                        }
+                    }
+                    // Crossings of the sub-lines far from every sample of the parent line (none
+                    // within kDepthSlack spacings in depth, whatever its normal: at a crease the
+                    // parent's sample stands for the whole cell, both sides of it): surface the
+                    // parent missed or grazed (its cell held no sample of it), now sampled.
+                    {
+                        const Line& P = lines_[p];
+                        const double slack = kDepthSlack * spacing(P.level);
+                        for (int d = 0; d < 4; ++d) {
+                            const Line& C = lines_[c0 + d];
+                            for (int q = 0; q < C.count; ++q) {
+                                bool known = false;
+                                for (int m = 0; m < P.count && !known; ++m)
+                                    known = sample_of(P, m) >= 0 && std::fabs(hit(C, q).t - hit(P, m).t) <= slack;
+                                Sample s;
+                                if (known || !make_sample(c0 + d, q, &s)) continue;
+                                if (fill) {
+                                    sample_of(lines_[c0 + d], q) = int(first_sample + at);
+                                    samples_[first_sample + at++] = s;
+                                }
+                                ++n;
+                            }
                         }
                     }
                     if (!fill) {
