@@ -322,9 +322,10 @@ RD_MFP = np.geomspace(1.0, 30.0, 13)
 #: noise grows with r: a channel of low albedo is 1e-10 of its peak long before 30 mean free
 #: paths).
 RD_REF_NOISE = 0.025
-#: The rd scene's sample spacing, in mean free paths: about 80 samples in the lit hole (at 0.25,
-#: 13, the hole's rim refined or not moved the lit flux by +5 % at high albedo: a quadrature of
-#: the hole, not the profile; DIPOLE.md 10.7).
+#: The rd scene's sample spacing, in mean free paths: about 80 samples in the lit hole (the
+#: rim's samples take their cells' mean light, DIPOLE.md 6, 2a: the hole's flux within 0.1 %;
+#: before that, at 0.25 (13 samples) the lit flux was +5 % off, at 0.1 -4.5 ... +1.9 % as the
+#: grid fell).
 RD_SPACING = 0.1
 #: Its hole's radius and its block's half width (and depth), in mean free paths.
 RD_HOLE = 0.5
@@ -365,9 +366,9 @@ def rd_rows(args, fork) -> list[dict]:
     round hole of radius 0.5 (a black ``no_image`` plate), seen straight down, centred, out to 30
     each way (``sample_spacing`` RD_SPACING: the automatic spacing, half a mean free path, would
     put a few samples in the hole). Annulus means (RD_MFP) over the four quadrants against
-    ``volume_ref.spot``. Centred, not one quadrant: the sampler coarsens what the camera does
-    not see, and the hole's three unseen quarters then lit the far annuli of a corner view
-    +34 % too bright at 26 mfp' (DIPOLE.md 10.7)."""
+    ``volume_ref.spot``. Centred (a view of one quadrant renders the same since the sample
+    grid no longer runs along the block's edges, which the plate ends flush with: DIPOLE.md
+    10.7)."""
     rows = []
     n = args.rd_pixels
     size, a = float(RD_MFP[-1]), RD_HOLE

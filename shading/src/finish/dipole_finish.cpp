@@ -277,6 +277,8 @@ std::vector<std::string> finish_statistics() {
     if (ss.clouds > 0) {
         line("Dipole objects:     %15.0f         Points: %10.0f", double(ss.clouds), double(ss.points));
         line("Dipole precompute:  %15.3f seconds", ss.build_seconds);
+        if (ss.edge_means > 0)
+            line("Dipole light edges: %15.0f samples at their cells' mean irradiance", double(ss.edge_means));
         if (ss.max_levels > 0) {
             line("Dipole refinement:  %15d levels  Points: %10.0f", ss.max_levels, double(ss.refined_points));
             line("Dipole finest spacing: %12g units", ss.finest_spacing);

@@ -181,6 +181,7 @@ std::shared_ptr<const PointCloud> Subsurface::build(const ParallelFor& parallel,
     CloudRecord r;
     r.points = cloud->points().size();
     r.refined = report.refined;
+    r.edge_means = report.edge_means;
     r.levels = report.levels;
     r.finest_spacing = cloud->stats().finest_spacing;
     r.unbounded = report.unbounded;

@@ -17,7 +17,7 @@ namespace {
 // Build counters change once per object; lookup counters once per shaded point, so each
 // thread counts its lookups in a block of its own (no shared cache line, no atomic
 // read-modify-write on the hot path) and subsurface_stats() adds the blocks up.
-std::atomic<std::size_t> g_clouds{0}, g_points{0}, g_refined{0};
+std::atomic<std::size_t> g_clouds{0}, g_points{0}, g_refined{0}, g_edge_means{0};
 std::atomic<std::int64_t> g_build_ns{0};
 std::atomic<std::size_t> g_unbounded{0}, g_thin{0}, g_slab_objects{0};
 std::atomic<int> g_max_levels{0};
@@ -61,6 +61,7 @@ SubsurfaceStats subsurface_stats() {
     s.clouds = g_clouds.load();
     s.points = g_points.load();
     s.refined_points = g_refined.load();
+    s.edge_means = g_edge_means.load();
     s.max_levels = g_max_levels.load();
     s.build_seconds = double(g_build_ns.load()) * 1e-9;
     s.unbounded = g_unbounded.load();
@@ -85,6 +86,7 @@ void record_cloud(const CloudRecord& r) {
     g_clouds += 1;
     g_points += r.points;
     g_refined += r.refined;
+    g_edge_means += r.edge_means;
     if (r.unbounded) ++g_unbounded;
     if (r.slab_object) ++g_slab_objects;
     else if (r.thin) ++g_thin;

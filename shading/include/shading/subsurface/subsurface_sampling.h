@@ -84,6 +84,7 @@ struct CloudReport {
     Vec3 centre;             // of the bounding box
     int levels = 0;          // refinement levels used
     std::size_t refined = 0; // samples added by refinement
+    std::size_t edge_means = 0;  // samples at an edge of the light that took their cell's mean E_t
     bool view_limited = false;  // refinement kept to the camera's view
     bool capped = false;     // refinement stopped by max_points
 };

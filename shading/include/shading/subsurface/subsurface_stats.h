@@ -15,6 +15,7 @@ struct SubsurfaceStats {
     std::size_t clouds = 0, points = 0, lookups = 0, nodes_visited = 0;
     double build_seconds = 0;
     std::size_t refined_points = 0;
+    std::size_t edge_means = 0;  // samples at an edge of the light that took their cell's mean E_t
     int max_levels = 0;
     double finest_spacing = 0;  // smallest spacing reached in any cloud (scene units), 0: none
     std::size_t unbounded = 0;  // objects that could not be sampled (no finite bounding box)
@@ -33,7 +34,7 @@ SubsurfaceStats subsurface_stats();
 
 // What building one object's cloud adds.
 struct CloudRecord {
-    std::size_t points = 0, refined = 0;
+    std::size_t points = 0, refined = 0, edge_means = 0;
     int levels = 0;               // refinement levels used
     double finest_spacing = 0;    // the cloud's finest spacing (counted where levels > 0)
     bool unbounded = false;       // no finite bounding box
