@@ -645,6 +645,28 @@ TEST(SubsurfaceSampling, RefinementFromACoarseViewLevelKeepsAllOfTheSurface) {
         std::printf("box padded by (%g, %g, %g): area %+.3f %%\n", o[0], o[1], o[2], 100 * rel);
         EXPECT_LT(std::fabs(rel), kCoarseViewArea);
     }
+    // The marked levels split only some cells: there the new surface is not added (each
+    // family's share of a cell is its centre's, and splitting the cells whose centre had none
+    // while their neighbours stay whole counted +5 % at a sphere's terminator). A sphere of
+    // radius 4 lit from one side, 12 spacings per radius, refined at its terminator (2 levels).
+    TestSampler lit(TestSampler::Sphere, Vec3(-4, -4, -4), Vec3(4, 4, 4), [](const Vec3&, const Vec3& n) {
+        return Rgb(std::max(0.0, dot(n, Vec3(2, 1, 2) * (1.0 / 3))));
+    });
+    const ParallelFor run = [&lit](std::size_t n, const std::function<void(std::size_t, SurfaceSampler&)>& task) {
+        for (std::size_t i = 0; i < n; ++i) task(i, lit);
+    };
+    SamplingPlan plan;
+    plan.lo = Vec3(-4, -4, -4);
+    plan.hi = Vec3(4, 4, 4);
+    plan.h0 = 1.0 / 3;
+    plan.levels = 3;
+    CloudReport report;
+    double area = 0;
+    for (const SurfacePoint& p : sample_surface(run, plan, &report)) area += p.area;
+    EXPECT_GE(report.levels, 2);
+    const double rel = area / (4 * kPi * 16) - 1;
+    std::printf("sphere refined at its terminator: area %+.3f %%\n", 100 * rel);
+    EXPECT_LT(std::fabs(rel), kCoarseViewArea);
 }
 
 TEST(SubsurfaceSampling, SmallObjectsAreReportedInSceneUnits) {

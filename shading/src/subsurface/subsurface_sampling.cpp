@@ -490,12 +490,16 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
             }
             tail[li] = me;
         }
-        // Lines with no sample beside a split one: the surface may pass through their cells
-        // where their own line missed it or grazed it (a silhouette seen at a coarse level: on
-        // a blob of two spheres of radius 0.71 sampled from 0.176 down to 0.022, 3.6 % of its
-        // area had no sample). They are split too, and every crossing of their sub-lines is new
-        // surface.
-        {
+        // At a view level (everything within reach split): lines with no sample beside a split
+        // one. The surface may pass through their cells where their own line missed it or
+        // grazed it (a silhouette seen at a coarse level: on a blob of two spheres of radius
+        // 0.71 sampled from 0.176 down to 0.022, 3.6 % of its area had no sample). They are
+        // split too, and every crossing of their sub-lines is new surface. Not at the marked
+        // levels: there only some cells split, and each family's share of a cell is its
+        // centre's (a midpoint rule); adding the sub-cells of cells whose centre had none, while
+        // their neighbours stay whole, counted a sphere's area +5 % at its terminator.
+        const bool whole = k < plan.view_levels;
+        if (whole) {
             std::vector<char> split(line_end - line_first, 0);
             for (int p : parents) split[std::size_t(p) - line_first] = 1;
             const std::size_t marked_lines = parents.size();
@@ -561,6 +565,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                     for (int d = 0; d < 4; ++d) same = same && lines_[c0 + d].count == lines_[p].count;
                     std::size_t at = offset[pi], n = 0, r = 0;
                     std::vector<std::pair<int, int>> taken;  // (sub-line, crossing) matched so far
+                    std::vector<std::pair<int, int>> placed;  // ... and given to a marked sample's place
                     for (int me = head[p - int(line_first)]; me >= 0; me = next[me]) {
                         const int m = samples_[level_first + me].layer;
                         int layer[4];
@@ -579,6 +584,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                         if (fill) samples_[sample_of(lines_[p], m)].active = false;
                         for (int d = 0; d < 4; ++d) {
                             Sample q;
+                            if (layer[d] >= 0) placed.emplace_back(d, layer[d]);
                             if (layer[d] < 0 || !make_sample(c0 + d, layer[d], &q)) continue;
                             if (fill) {
                                 sample_of(lines_[c0 + d], layer[d]) = int(first_sample + at);
@@ -587,17 +593,18 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
                             ++n;
                         }
                     }
-                    // Crossings of the sub-lines far from every sample of the parent line (none
-                    // within kDepthSlack spacings in depth, whatever its normal: at a crease the
-                    // parent's sample stands for the whole cell, both sides of it): surface the
-                    // parent missed or grazed (its cell held no sample of it), now sampled.
-                    {
+                    // At a view level: crossings of the sub-lines far from every sample of the
+                    // parent line (none within kDepthSlack spacings in depth, whatever its
+                    // normal: at a crease the parent's sample stands for the whole cell, both
+                    // sides of it): surface the parent missed or grazed (its cell held no sample
+                    // of it), now sampled.
+                    if (whole) {
                         const Line& P = lines_[p];
                         const double slack = kDepthSlack * spacing(P.level);
                         for (int d = 0; d < 4; ++d) {
                             const Line& C = lines_[c0 + d];
                             for (int q = 0; q < C.count; ++q) {
-                                bool known = false;
+                                bool known = std::find(placed.begin(), placed.end(), std::make_pair(d, q)) != placed.end();
                                 for (int m = 0; m < P.count && !known; ++m)
                                     known = sample_of(P, m) >= 0 && std::fabs(hit(C, q).t - hit(P, m).t) <= slack;
                                 Sample s;
