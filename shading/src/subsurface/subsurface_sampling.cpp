@@ -63,6 +63,24 @@ double smooth01(double t) {
     return t * t * (3 - 2 * t);
 }
 
+// |n_axis|: how often lines along `axis` meet a surface element of unit normal n per unit of
+// their cross-section.
+double axis_share(const Vec3& n, int axis) { return std::fabs(axis == 0 ? n.x : (axis == 1 ? n.y : n.z)); }
+
+// Among hits[0, count), the crossing on the sheet of a crossing at depth t with normal n: the
+// nearest in depth within `slack`, its normal within 60 degrees; -1 if none.
+int nearest_on_sheet(const SurfaceSampler::Hit* hits, int count, double t, const Vec3& n, double slack) {
+    int found = -1;
+    for (int q = 0; q < count; ++q) {
+        const double dt = std::fabs(hits[q].t - t);
+        if (dt <= slack && dot(hits[q].n, n) > 0.5) {
+            slack = dt;
+            found = q;
+        }
+    }
+    return found;
+}
+
 // The share of family `axis` at a surface point of unit normal n: a partition of unity over
 // the three families (the family of the largest |n_a| has weight 1 before normalising).
 double family_weight(const Vec3& n, int axis) {
@@ -205,7 +223,7 @@ void Sampling::shoot(std::size_t first) {
 bool Sampling::make_sample(int line, int layer, Sample* s) const {
     const Line& L = lines_[line];
     const SurfaceSampler::Hit& h0 = hit(L, layer);
-    const double na = std::fabs(L.axis == 0 ? h0.n.x : (L.axis == 1 ? h0.n.y : h0.n.z));
+    const double na = axis_share(h0.n, L.axis);
     const double w = family_weight(h0.n, L.axis);
     if (!(w > 0) || !(na > 0)) return false;
     const double h = spacing(L.level);
@@ -338,18 +356,13 @@ std::size_t Sampling::edge_means(const SamplingPlan& plan, double threshold) {
                 q[c] += (v + 0.5) * step - 0.5 * h;
                 hits.clear();
                 s.line_hits(a, Vec3(q[0], q[1], q[2]), &hits);
-                const SurfaceSampler::Hit* best = nullptr;
-                double slack = kDepthSlack * h;
-                for (const SurfaceSampler::Hit& H : hits)
-                    if (std::fabs(H.t - at.t) <= slack && dot(H.n, at.n) > 0.5) {
-                        slack = std::fabs(H.t - at.t);
-                        best = &H;
-                    }
-                if (!best) continue;
-                const double na = std::fabs(a == 0 ? best->n.x : (a == 1 ? best->n.y : best->n.z));
-                const double w = na > 0 ? family_weight(best->n, a) / na : 0.0;
+                const int i = nearest_on_sheet(hits.data(), int(hits.size()), at.t, at.n, kDepthSlack * h);
+                if (i < 0) continue;
+                const SurfaceSampler::Hit& H = hits[std::size_t(i)];
+                const double na = axis_share(H.n, a);
+                const double w = na > 0 ? family_weight(H.n, a) / na : 0.0;
                 if (!(w > 0)) continue;
-                sum = sum + s.irradiance(best->p, best->n) * w;
+                sum = sum + s.irradiance(H.p, H.n) * w;
                 weight += w;
             }
         mean[k] = weight > 0 ? sum * (1.0 / weight) : S.irradiance;
@@ -544,16 +557,7 @@ std::vector<SurfacePoint> Sampling::run(const SamplingPlan& plan, CloudReport* r
         auto match = [&](int child, const Line& parent, int m) {
             const SurfaceSampler::Hit& ph = hit(parent, m);
             const Line& C = lines_[child];
-            double best = kDepthSlack * spacing(parent.level);
-            int found = -1;
-            for (int q = 0; q < C.count; ++q) {
-                const double dt = std::fabs(hit(C, q).t - ph.t);
-                if (dt <= best && dot(hit(C, q).n, ph.n) > 0.5) {
-                    best = dt;
-                    found = q;
-                }
-            }
-            return found;
+            return C.count > 0 ? nearest_on_sheet(&hit(C, 0), C.count, ph.t, ph.n, kDepthSlack * spacing(parent.level)) : -1;
         };
         auto for_parents = [&](bool fill) {
             const std::size_t chunks = (parents.size() + 63) / 64;
