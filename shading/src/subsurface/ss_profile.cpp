@@ -40,9 +40,15 @@ std::vector<std::pair<int, double>> axis_weights(const std::vector<double>& axis
     return w;
 }
 
-// Catmull-Rom weights on the uniform albedo grid at fractional index s (clamped inside).
+// Catmull-Rom weights on the uniform albedo grid at fractional index s (clamped at the last
+// node). Below the first node (s < 0: alpha under 1 - e^-u_0, e.g. Ketchup's green and blue)
+// every quantity is continued linearly in u through the first two nodes: multiple scattering
+// there is alpha^2 D2 (1 + alpha D3 / D2 + ...), so ln(v / alpha^2) is linear in u ~ alpha to
+// first order, and the shape and exit distribution change at the same rate. Holding node 0
+// instead rendered Ketchup's blue (alpha' 0.02) 14-17 % too bright (DIPOLE.md 10.3).
 std::vector<std::pair<int, double>> albedo_weights(int n, double s) {
-    s = std::clamp(s, 0.0, double(n - 1));
+    if (s < 0) return {{0, 1.0 - s}, {1, s}};
+    s = std::min(s, double(n - 1));
     int i = std::min(int(std::floor(s)), n - 2);
     const double t = s - i;
     if (t == 0) return {{i, 1.0}};
@@ -144,7 +150,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                 const double u = alpha < 1.0 ? -std::log1p(-alpha) : 1e300;
                 // Multiple scattering goes as alpha^2 for small alpha: the profile values and the
                 // total are interpolated as ln(v / alpha^2) (smooth in u down to alpha = 0, and
-                // below the first node that ratio is held constant).
+                // continued linearly below the first node: albedo_weights).
                 const double sidx = (u - s.u_0) / s.u_step;
                 const double ln_a2 = alpha > 0 ? 2.0 * std::log(alpha) : std::log(kTiny);
                 for (auto [k, wk] : albedo_weights(s.albedos, sidx)) {
