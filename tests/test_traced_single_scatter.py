@@ -110,15 +110,18 @@ def test_on_a_flat_face_the_traced_sum_is_the_formula(fork):
 #: 4 of the reference's standard errors
 SHEET_TOL = 0.03
 #: the default (the half-space formula on the lit side; the slab's transmitted face holding the
-#: single scattering) on the same sheet: at least this far off (the control)
-SHEET_DEFAULT_OFF = 0.5
+#: single scattering) on the same sheet: at least this far off on either side (the control;
+#: measured 1.16 lit, 0.48 behind: the blue, alpha' 0.02, whose slab single scattering was held
+#: at the tables' first albedo node until 2026-12-05 and read 3.48 behind)
+SHEET_DEFAULT_OFF = 0.3
 
 
 def test_a_back_lit_sheet_counts_single_scattering_once(fork):
     """A Ketchup sheet (eta 1, g 0) 0.25 transport mean free paths thick, lit straight from above,
     seen straight from above and from below: the centre pixels against volume_ref.sheet (a numpy
     photon tracer sharing no code with the library), every channel. Measured (walk_bench):
-    traced 0.50 % (lit side) and 0.56 % (behind); the default +119 % and +348 %."""
+    traced 0.50 % (lit side) and 0.56 % (behind); the default +119 % and +49 % (+348 % behind
+    before the tables were continued below their first albedo node)."""
     ss, sa = wb.coefficients("Ketchup", 0.0)
     d = 0.25 * wb.longest_mfp("Ketchup")
     views = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
