@@ -9,7 +9,9 @@ distribution changes with the distance from the entry point, and the tables carr
 of distance (shading/DIPOLE.md 10.3, 10.7); with uniform light's at every distance the render
 was too bright near the hole at normal view (8.0 % here at sample spacing 0.25, 6.8 % at 0.1).
 The scene and reference are seeded: the measured value is the same every run. The control: the
-classical dipole's profile is far off in the same annuli.
+classical dipole's profile is far off in the same annuli. Two more channels where the profile
+used to fail: Ketchup's blue at ior 1.3 (alpha' 0.02, below the tables' first albedo node) and
+its green at ior 1 (the distance bands' curve keeping each band's mean), both ss_profile.cpp.
 """
 
 from __future__ import annotations
