@@ -73,7 +73,7 @@ public:
     void line_hits(int axis, const Vec3& origin, std::vector<Hit>* hits) override {
         found_.clear();
         object_.line_hits(axis, origin, &found_);
-        for (const DipoleObject::Hit& h : found_) hits->push_back(Hit{h.t, h.p, h.n});
+        for (const DipoleObject::Hit& h : found_) hits->push_back(Hit{h.t, h.p, h.n, h.lift});
     }
     Rgb irradiance(const Vec3& p, const Vec3& n) override { return object_.irradiance(p, n); }
     std::string describe() override { return object_.describe(); }

@@ -246,7 +246,7 @@ void Sampling::light(std::size_t first) {
     parallel_(samples_.size() - first, [this, first](std::size_t k, SurfaceSampler& s) {
         Sample& S = samples_[first + k];
         const SurfaceSampler::Hit& at = hit(S);
-        S.irradiance = s.irradiance(at.p, at.n);
+        S.irradiance = s.irradiance(at.lit(), at.n);
         S.e = S.irradiance.r + S.irradiance.g + S.irradiance.b;
         if (thickness_) S.thickness = s.thickness(at.p, at.n);
         if (plan_->incidence && S.e > 0) shift_of(s, at, S);
@@ -264,14 +264,14 @@ void Sampling::shift_of(SurfaceSampler& s, const SurfaceSampler::Hit& at, Sample
     Rgb wsum(0.0);
     for (int i = 0; i < lights; ++i) {
         Vec3 l;
-        if (!s.light_direction(i, at.p, &l)) continue;
+        if (!s.light_direction(i, at.lit(), &l)) continue;
         const double cos_i = dot(l, at.n);
         if (!(cos_i > 0)) continue;
         const Vec3 tangent = at.n * cos_i - l;  // the beam's travel along the surface
         const double len = length(tangent);
         Rgb entry, shift;
         plan_->incidence(std::min(cos_i, 1.0), &entry, &shift);
-        const Rgb colour = lights == 1 ? Rgb(1.0) : s.light_colour(i, at.p, at.n, l);
+        const Rgb colour = lights == 1 ? Rgb(1.0) : s.light_colour(i, at.lit(), at.n, l);
         const Vec3 dir = len > 1e-12 ? tangent * (1.0 / len) : Vec3(0, 0, 0);
         for (int c = 0; c < 3; ++c) {
             const double w = entry[c] * cos_i * colour[c];
@@ -362,7 +362,7 @@ std::size_t Sampling::edge_means(const SamplingPlan& plan, double threshold) {
                 const double na = axis_share(H.n, a);
                 const double w = na > 0 ? family_weight(H.n, a) / na : 0.0;
                 if (!(w > 0)) continue;
-                sum = sum + s.irradiance(H.p, H.n) * w;
+                sum = sum + s.irradiance(H.lit(), H.n) * w;
                 weight += w;
             }
         mean[k] = weight > 0 ? sum * (1.0 / weight) : S.irradiance;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "shading/core/smooth_facet.h"
 #include "shading/finish/finish.h"
 
 namespace shading {
@@ -67,6 +68,9 @@ public:
     struct Hit {
         double t;   // distance along the line from its origin
         Vec3 p, n;  // point and outward unit normal
+        // line_hits: light reaching p is tested from p + lift; zero except on a flat facet with
+        // vertex normals (a smooth triangle), where smooth_facet_point(...) - p.
+        Vec3 lift;
     };
     // The camera, for refinement within reach of what is seen.
     struct CameraView {

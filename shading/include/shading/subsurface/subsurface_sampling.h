@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "shading/core/smooth_facet.h"
 #include "shading/core/vec.h"
 #include "shading/subsurface/point_cloud.h"
 
@@ -36,6 +37,12 @@ public:
     struct Hit {
         double t;  // distance along the line from its origin
         Vec3 p, n; // point and outward unit normal
+        // Light reaching p is tested from p + lift: zero, except on a flat facet with vertex
+        // normals, where it reaches the curved surface they describe (smooth_facet_point in
+        // core/smooth_facet.h): tested from the facet, light near the terminator falls in
+        // facet-sized jags, which refinement would chase as shadow edges (DIPOLE.md 6).
+        Vec3 lift;
+        Vec3 lit() const { return p + lift; }
     };
     // The object's bounding box; false when it has none (unbounded: no subsurface light).
     virtual bool bounds(Vec3* lo, Vec3* hi) = 0;
