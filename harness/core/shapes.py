@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["BLOB", "DIFFERENCE", "MESH", "SHAPES", "SPHERES", "bumpy_mesh", "scene"]
+__all__ = ["BLOB", "DIFFERENCE", "MESH", "SHAPES", "SPHERES", "bumpy_mesh", "scene", "smooth_sphere_mesh"]
 
 _HEAD = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
@@ -73,6 +73,27 @@ def bumpy_mesh(nu: int = 48, nv: int = 24) -> str:
     vec = lambda a: ", ".join("<%.6f, %.6f, %.6f>" % tuple(x) for x in a)
     return (f"mesh2 {{ vertex_vectors {{ {len(v)}, {vec(v)} }} normal_vectors {{ {len(n)}, {vec(n)} }} "
             f"face_indices {{ {len(f)}, " + ", ".join("<%d, %d, %d>" % tuple(t) for t in f) + " } inside_vector y ")
+
+
+def smooth_sphere_mesh(radius: float = 0.8, nu: int = 48, nv: int = 24) -> str:
+    """A mesh2 sphere of `radius` with its exact normals at the vertices (one vertex at each
+    pole): what a modelling program exports for a smooth ball, as a POV object (its closing
+    brace is the caller's, after the texture)."""
+    th = np.pi * np.arange(1, nv) / nv
+    ph = 2 * np.pi * np.arange(nu) / nu
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    ring = np.stack([np.sin(T) * np.cos(P), np.cos(T), np.sin(T) * np.sin(P)], -1).reshape(-1, 3)
+    n = np.vstack([[0.0, 1.0, 0.0], ring, [0.0, -1.0, 0.0]])
+    top, bottom = 0, len(n) - 1
+    at = lambda i, j: 1 + i * nu + j % nu  # ring i (from the top), meridian j
+    faces = [(top, at(0, j + 1), at(0, j)) for j in range(nu)]
+    for i in range(nv - 2):
+        for j in range(nu):
+            faces += [(at(i, j), at(i, j + 1), at(i + 1, j)), (at(i, j + 1), at(i + 1, j + 1), at(i + 1, j))]
+    faces += [(at(nv - 2, j), at(nv - 2, j + 1), bottom) for j in range(nu)]
+    vec = lambda a: ", ".join("<%.6f, %.6f, %.6f>" % tuple(x) for x in a)
+    return (f"mesh2 {{ vertex_vectors {{ {len(n)}, {vec(radius * n)} }} normal_vectors {{ {len(n)}, {vec(n)} }} "
+            f"face_indices {{ {len(faces)}, " + ", ".join("<%d, %d, %d>" % t for t in faces) + " } inside_vector y ")
 
 
 def scene(shape: str, preset: str, extra: str = "", sphere: bool = False) -> str:
