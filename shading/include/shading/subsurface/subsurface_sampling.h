@@ -9,7 +9,6 @@
 #include <string>
 #include <vector>
 
-#include "shading/core/smooth_facet.h"
 #include "shading/core/vec.h"
 #include "shading/subsurface/point_cloud.h"
 
@@ -40,7 +39,7 @@ public:
         // Light reaching p is tested from p + lift: zero, except on a flat facet with vertex
         // normals, where it reaches the curved surface they describe (smooth_facet_point in
         // core/smooth_facet.h): tested from the facet, light near the terminator falls in
-        // facet-sized jags, which refinement would chase as shadow edges (DIPOLE.md 6).
+        // facet-sized jags, which refinement would chase as shadow edges (DIPOLE.md 8).
         Vec3 lift;
         Vec3 lit() const { return p + lift; }
     };
