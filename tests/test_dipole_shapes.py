@@ -178,10 +178,9 @@ def test_a_smooth_mesh_is_sampled_like_the_sphere_it_stands_for(fork, preset):
     """A mesh exported from a modelling program with vertex normals is a smooth surface to the
     user. Its cloud is the sphere's: its samples' normals point out (patch 0027) and their light
     does not fall in facet-sized jags at the terminator (patch 0028)."""
-    sphere = shapes._CENTRE_HEAD + "sphere {{ 0, 0.8 " + shapes._TEXTURE + " }}\n"
     runs = [runner.render(template.format(preset=preset, extra="", mesh=shapes.smooth_sphere_mesh()), fork,
                           width=192, height=160, float_exr=True, threads=2)
-            for template in (shapes.MESH, sphere)]
+            for template in (shapes.MESH, shapes.SMOOTH_MESH_SPHERE)]
     (mesh_nodes, mesh_levels, mesh_points), (nodes, levels, points) = (_cloud(r.stderr) for r in runs)
     means = []
     for r in runs:

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["BLOB", "DIFFERENCE", "MESH", "SHAPES", "SPHERES", "bumpy_mesh", "scene", "smooth_sphere_mesh"]
+__all__ = ["BLOB", "DIFFERENCE", "MESH", "SHAPES", "SMOOTH_MESH_SPHERE", "SPHERES", "bumpy_mesh", "scene",
+           "smooth_sphere_mesh"]
 
 _HEAD = """#version 3.7;
 global_settings {{ assumed_gamma 1.0 mm_per_unit 10 }}
@@ -44,6 +45,8 @@ SPHERES = {
     "difference": _CENTRE_HEAD + "sphere {{ 0, 0.9 " + _TEXTURE + " }}\n",
 }
 SPHERES["mesh"] = SPHERES["difference"]
+#: the sphere smooth_sphere_mesh() stands for (radius 0.8), in the mesh's camera and light
+SMOOTH_MESH_SPHERE = _CENTRE_HEAD + "sphere {{ 0, 0.8 " + _TEXTURE + " }}\n"
 
 
 def bumpy_mesh(nu: int = 48, nv: int = 24) -> str:
