@@ -196,7 +196,7 @@ demo: all brdf-data venv ## Build the fork, the tables and the harness venv (the
 
 test: all venv brdf-data ## Build if needed, run the unit (ctest) and fast Python (pytest) suites
 	cd $(SHADING_BUILD) && ctest --output-on-failure -j $(JOBS)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -m "not slow" -n $(JOBS)
 
 # The security and data-safety checks too slow for `make test` (.ci/run runs both): every
 # entry point x path form against the fork and Debian's stock binary (the matrix is printed),
