@@ -609,6 +609,47 @@ TEST(SubsurfaceSampling, ALitSpotsFluxDoesNotDependOnWhereTheGridFalls) {
     EXPECT_LT(worst, kSpotFlux);
 }
 
+TEST(PointCloudLight, LitWithinFindsTheNearestLitPointAndTheBrightest) {
+    // A plane of spacing 1, lit only at the sample (0.5, 0.5): its light is found within a
+    // radius that reaches it and not within one that falls short; an unlit cloud has none.
+    const auto pts = plane(10, 1, [](double x, double y) {
+        return x == 0.5 && y == 0.5 ? Rgb(0.25, 0.75, 0.5) : Rgb(0.0);
+    });
+    const PointCloud c(pts, 1.0);
+    EXPECT_EQ(c.max_irradiance(), 0.75);
+    EXPECT_TRUE(c.lit_within(Vec3(0.5, 0.5, 0), 0.01));
+    EXPECT_TRUE(c.lit_within(Vec3(3.5, 0.5, 0), 3.001));
+    EXPECT_FALSE(c.lit_within(Vec3(3.5, 0.5, 0), 2.999));
+    EXPECT_FALSE(c.lit_within(Vec3(-6.5, -6.5, 0), 8.0));
+    const PointCloud dark(plane(10, 1, [](double, double) { return Rgb(0.0); }), 1.0);
+    EXPECT_EQ(dark.max_irradiance(), 0.0);
+    EXPECT_FALSE(dark.lit_within(Vec3(0.5, 0.5, 0), 100.0));
+}
+
+TEST(SubsurfaceSampling, ALitSpotBetweenTheSamplesIsCountedForTheWarning) {
+    // A spot of radius 0.2 lit on a slab sampled every 2 units: no sample sees its light, so a
+    // lookup inside it is counted (the statistics' warning), and one outside it or under the
+    // same spot sampled every 0.05 is not.
+    auto unresolved_after = [](double spacing, const Vec3& x, const Rgb& e_here) {
+        SubsurfaceSettings st;
+        st.spacing = spacing;
+        st.max_levels = 0;
+        Subsurface s(marble(), st);
+        TestSampler slab(TestSampler::Box, Vec3(-4, -4, -2), Vec3(4, 4, 0), [](const Vec3& p, const Vec3& n) {
+            return Rgb(n.z > 0.5 && std::hypot(p.x - 0.3, p.y - 0.1) < 0.2 ? 1.0 : 0.0);
+        });
+        int key = 0;
+        const PointCloud& c = s.cloud(&key, slab);
+        const std::size_t before = subsurface_stats().unresolved_lookups;
+        s.radiance(c, x, Vec3(0, 0, 1), Vec3(0, 0, 1), e_here);
+        return subsurface_stats().unresolved_lookups - before;
+    };
+    const Vec3 in_spot(0.3, 0.1, 0), away(-3, -3, 0);
+    EXPECT_EQ(unresolved_after(2.0, in_spot, Rgb(1.0)), 1u);
+    EXPECT_EQ(unresolved_after(2.0, away, Rgb(0.0)), 0u);
+    EXPECT_EQ(unresolved_after(0.05, in_spot, Rgb(1.0)), 0u);
+}
+
 TEST(SubsurfaceSampling, RefinementFromACoarseViewLevelKeepsAllOfTheSurface) {
     // A sphere of radius 1 sampled as a view-limited cloud is: lines at 0.25 (the base spacing
     // x 8 out of view), then 3 view levels down to 1/32 wherever the (orthographic) view sees

@@ -295,6 +295,13 @@ std::vector<std::string> finish_statistics() {
             line("  thinnest %g units = %.3g mean free paths: slab profiles in %.0f lookups", ss.thinnest, ss.thinnest_mfp,
                  double(ss.slab_lookups));
         }
+        if (ss.unresolved_lookups > 0) {
+            // (POV wraps statistics at 80 columns: short lines)
+            line("Dipole warning: %.0f lit points with no lit sample within 8 spacings", double(ss.unresolved_lookups));
+            line("  (%g units): a lit area smaller than the sample spacing gets no light", ss.unresolved_spacing);
+            lines.push_back("  under the surface around it. Give sample_spacing a quarter of the lit");
+            lines.push_back("  area's size or less.");
+        }
         const std::size_t shown = 10;  // per-object warnings (small objects): the first few, then a count
         for (std::size_t i = 0; i < ss.notes.size() && i < shown; i++) lines.push_back(ss.notes[i]);
         if (ss.notes.size() > shown)

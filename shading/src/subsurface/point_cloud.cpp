@@ -341,7 +341,10 @@ void PointCloud::aggregate(Tree& t, int index, int first, int count, int n) {
 
 void PointCloud::finish() {
     leaves_.resize(points_.size());
-    for (std::size_t i = 0; i < points_.size(); ++i) leaves_[i] = {points_[i].p, points_[i].irradiance * points_[i].area};
+    for (std::size_t i = 0; i < points_.size(); ++i) {
+        leaves_[i] = {points_[i].p, points_[i].irradiance * points_[i].area};
+        max_irradiance_ = std::max(max_irradiance_, points_[i].irradiance.max_component());
+    }
     build_shifts();
     // Children come after their parent: one backward pass settles which nodes share one level.
     for (std::size_t k = nodes_.size(); k-- > 0;) {
@@ -545,6 +548,27 @@ int PointCloud::lookup_level(const Vec3& x) const {
     }
     const int i = nearest(x);
     return i < 0 ? 0 : level_of_[i];
+}
+
+bool PointCloud::lit_within(const Vec3& x, double radius) const {
+    if (nodes_.empty()) return false;
+    const double r2 = radius * radius;
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& nd = nodes_[stack[--top]];
+        if (!nd.lit || !(box_distance2(x, nd.lo, nd.hi) <= r2)) continue;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const Vec3 v = leaves_[i].p - x;
+                if (leaves_[i].flux.max_component() > 0 && dot(v, v) <= r2) return true;
+            }
+            continue;
+        }
+        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+    }
+    return false;
 }
 
 CloudStats PointCloud::stats() const {

@@ -272,6 +272,26 @@ const SlabProfiles& Subsurface::slab(double d) const {
     return slabs_->node(d).p;
 }
 
+namespace {
+
+// A lit x with no lit sample within kUnresolvedSpacings spacings: the light at x fell between
+// the samples, and the cloud carries none of it under the surface (counted for the statistics'
+// warning: DIPOLE.md 10.7). Lit means above `tolerance` of the cloud's brightest sample (any
+// light where the cloud has none). One small search per lit lookup (+0.05 % of a blob's
+// instructions).
+// At 3 spacings (the near field's outer edge), 2 of 15 000 lookups of the CSG difference in
+// Skin1 (a concave edge) and 1 of the bumpy mesh in marble (a self-shadow's edge) counted, their
+// nearest lit samples 3-4.5 spacings away: gaps along edges of the geometry or of the light,
+// not a lit area the cloud missed.
+constexpr double kUnresolvedSpacings = 8;
+void check_resolved(const PointCloud& cloud, const Vec3& x, double h, const Rgb& irradiance_here, double tolerance) {
+    const double e = irradiance_here.max_component();
+    if (e > 0 && e >= tolerance * cloud.max_irradiance() && !cloud.lit_within(x, kUnresolvedSpacings * h))
+        count_unresolved(h);
+}
+
+}  // namespace
+
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                          const Rgb& irradiance_here) const {
     const double cos_o = dot(n, to_eye);
@@ -287,6 +307,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
         // by the irradiance upstream of x (PointCloud::far_exitance_shifted), not x's own.
         const int level = cloud.lookup_level_shifted(x);
         const double h = cloud.level_spacing(level), r0 = near_radius(h);
+        check_resolved(cloud, x, h, irradiance_here, settings_.tolerance);
         Rgb upstream;
         Rgb m = cloud.far_exitance_shifted(*profile_, x, n, r0, h, settings_.max_angle, cutoff(), &upstream, &visited, wt);
         count_lookup(visited, false);
@@ -296,6 +317,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
+    check_resolved(cloud, x, h, irradiance_here, settings_.tolerance);
     Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited, wt);
     count_lookup(visited, false);
     m += irradiance_here * cloud.level_near(level) * (wt ? near_weight(*wt, h) : Rgb(1.0));
@@ -356,6 +378,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     // Linear in ln d between the two thickness nodes around it (SlabCache::around).
     const SlabCache::Around slab = slabs_->around(thickness);
     const int level = cloud.lookup_level(x);
+    check_resolved(cloud, x, cloud.level_spacing(level), irradiance_here, settings_.tolerance);
     std::size_t visited = 0;
     RadialWeight weight;
     const RadialWeight* wt = slab_weight(cos_o, thickness, &weight);

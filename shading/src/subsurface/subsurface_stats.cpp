@@ -23,7 +23,8 @@ std::atomic<std::size_t> g_unbounded{0}, g_thin{0}, g_slab_objects{0};
 std::atomic<int> g_max_levels{0};
 
 struct alignas(64) LookupCounter {
-    std::atomic<std::uint64_t> lookups{0}, visited{0}, slab{0};
+    std::atomic<std::uint64_t> lookups{0}, visited{0}, slab{0}, unresolved{0};
+    std::atomic<double> unresolved_h{0.0};
 };
 
 struct Notes {
@@ -72,6 +73,8 @@ SubsurfaceStats subsurface_stats() {
         s.lookups += c->lookups.load(std::memory_order_relaxed);
         s.nodes_visited += c->visited.load(std::memory_order_relaxed);
         s.slab_lookups += c->slab.load(std::memory_order_relaxed);
+        s.unresolved_lookups += c->unresolved.load(std::memory_order_relaxed);
+        s.unresolved_spacing = std::max(s.unresolved_spacing, c->unresolved_h.load(std::memory_order_relaxed));
     }
     s.slab_objects = g_slab_objects.load();
     s.thinnest = n.thinnest;
@@ -113,6 +116,12 @@ void count_lookup(std::size_t visited, bool slab) {
     bump(c.lookups, 1);
     bump(c.visited, visited);
     if (slab) bump(c.slab, 1);
+}
+
+void count_unresolved(double h) {
+    LookupCounter& c = thread_counter();
+    bump(c.unresolved, 1);
+    if (h > c.unresolved_h.load(std::memory_order_relaxed)) c.unresolved_h.store(h, std::memory_order_relaxed);
 }
 
 std::string small_object_note(const std::string& object, const Vec3& centre, double extent, double L,

@@ -67,6 +67,11 @@ public:
     void set_view_spacing(double h) { view_spacing_ = h; }
     // The split a lookup at x uses: the lookup spacing of the point nearest to x.
     int lookup_level(const Vec3& x) const;
+    // Whether a point with light (E_t > 0 in some channel) lies within `radius` of x: where x
+    // is lit and none does, the light at x fell between the samples (Subsurface::radiance).
+    bool lit_within(const Vec3& x, double radius) const;
+    // The largest E_t of any point in any channel (0: nothing lit).
+    double max_irradiance() const { return max_irradiance_; }
     double level_spacing(int level) const { return levels_[level].h; }
     const Rgb& level_near(int level) const { return levels_[level].near; }
     // Near reflectance of the base spacing (one-level clouds).
@@ -220,6 +225,7 @@ private:
                   double h, const Rgb& near_opposite, const RadialWeight* weight) const;
     double spacing_ = 0;
     double view_spacing_ = 0;
+    double max_irradiance_ = 0;
     std::vector<SurfacePoint> points_;
     std::vector<Leaf> leaves_;            // points_ in the same order, as the far sum reads them
     std::vector<std::uint8_t> level_of_;  // per point: index into levels_ (empty: all 0)

@@ -24,6 +24,10 @@ struct SubsurfaceStats {
     // thinnest sample found (scene units and transport mean free paths), lookups that used
     // slab profiles.
     std::size_t slab_objects = 0, slab_lookups = 0;
+    // Lookups at a lit point with no lit sample within 8 spacings of it (a lit area smaller than
+    // the sample spacing: Subsurface::radiance), and the largest such spacing (scene units).
+    std::size_t unresolved_lookups = 0;
+    double unresolved_spacing = 0;
     double thinnest = 0, thinnest_mfp = 0;  // 0: none
     std::vector<std::string> notes;  // per-object warnings (small objects), sorted
 };
@@ -49,6 +53,8 @@ void record_cloud(const CloudRecord& r);
 // One lookup (Subsurface::radiance): octree nodes opened, and whether it used slab profiles.
 // Counted per thread, without a lock or a shared cache line.
 void count_lookup(std::size_t visited, bool slab);
+// A lookup at a lit point of spacing h that the cloud saw no light near (SubsurfaceStats).
+void count_unresolved(double h);
 
 // The warning about an object smaller than 3 diffusion lengths L (scene units; infinite without
 // absorption): `object` as the renderer describes it, its bounding box's centre and largest
