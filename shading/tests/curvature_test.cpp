@@ -98,7 +98,9 @@ TEST(CurvatureCoefficient, GrowsWithTheIorAtEveryAlbedoAndIsHeldBeyondTheGrid) {
         for (double eta = 1.0; eta <= 2.0 + 1e-9; eta += 0.05) {
             const double c = curvature_coefficient(eta, albedo);
             EXPECT_GE(c, last) << "eta " << eta << " albedo " << albedo;  // never below 0
-            if (eta > 1.25) EXPECT_GT(c, last) << "eta " << eta << " albedo " << albedo;
+            if (eta > 1.25) {
+                EXPECT_GT(c, last) << "eta " << eta << " albedo " << albedo;
+            }
             last = c;
         }
         EXPECT_EQ(curvature_coefficient(3.0, albedo), curvature_coefficient(2.0, albedo));

@@ -188,8 +188,8 @@ public:
         for (int k = 0; k < 3; ++k)
             if (k != axis && !(oc[k] > lo[k] && oc[k] < hi[k])) return;
         const Vec3 dir(axis == 0, axis == 1, axis == 2);
-        hits->push_back({lo[axis] - oc[axis], o + dir * (lo[axis] - oc[axis]), dir * -1.0});
-        hits->push_back({hi[axis] - oc[axis], o + dir * (hi[axis] - oc[axis]), dir});
+        hits->push_back({lo[axis] - oc[axis], o + dir * (lo[axis] - oc[axis]), dir * -1.0, Vec3()});
+        hits->push_back({hi[axis] - oc[axis], o + dir * (hi[axis] - oc[axis]), dir, Vec3()});
     }
     Rgb irradiance(const Vec3& p, const Vec3& n) override { return e_(p, n); }
     std::string describe() override { return "box"; }

@@ -360,8 +360,8 @@ public:
             for (int k = 0; k < 3; ++k)
                 if (k != axis && !(closed ? oc[k] >= lo[k] && oc[k] <= hi[k] : oc[k] > lo[k] && oc[k] < hi[k])) return;
             Vec3 p0 = o + d * (lo[axis] - oc[axis]), p1 = o + d * (hi[axis] - oc[axis]);
-            hits->push_back({lo[axis] - oc[axis], p0, -d});
-            hits->push_back({hi[axis] - oc[axis], p1, d});
+            hits->push_back({lo[axis] - oc[axis], p0, -d, Vec3()});
+            hits->push_back({hi[axis] - oc[axis], p1, d, Vec3()});
             return;
         }
         const Vec3 c = (lo_ + hi_) * 0.5;
@@ -371,7 +371,7 @@ public:
         if (!(disc > 0)) return;
         for (double t : {-b - std::sqrt(disc), -b + std::sqrt(disc)}) {
             const Vec3 p = o + d * t;
-            hits->push_back({t, p, (p - c) * (1.0 / R)});
+            hits->push_back({t, p, (p - c) * (1.0 / R), Vec3()});
         }
     }
     Rgb irradiance(const Vec3& p, const Vec3& n) override {
