@@ -648,6 +648,12 @@ TEST(SubsurfaceSampling, ALitSpotBetweenTheSamplesIsCountedForTheWarning) {
     EXPECT_EQ(unresolved_after(2.0, in_spot, Rgb(1.0)), 1u);
     EXPECT_EQ(unresolved_after(2.0, away, Rgb(0.0)), 0u);
     EXPECT_EQ(unresolved_after(0.05, in_spot, Rgb(1.0)), 0u);
+    // An empty cloud (an unbounded object, warned of on its own) counts nothing.
+    Subsurface s(marble(), SubsurfaceSettings());
+    const PointCloud empty({}, 1.0);
+    const std::size_t before = subsurface_stats().unresolved_lookups;
+    s.radiance(empty, in_spot, Vec3(0, 0, 1), Vec3(0, 0, 1), Rgb(1.0));
+    EXPECT_EQ(subsurface_stats().unresolved_lookups, before);
 }
 
 TEST(SubsurfaceSampling, RefinementFromACoarseViewLevelKeepsAllOfTheSurface) {

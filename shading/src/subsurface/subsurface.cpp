@@ -278,7 +278,7 @@ namespace {
 // the samples, and the cloud carries none of it under the surface (counted for the statistics'
 // warning: DIPOLE.md 10.7). Lit means above `tolerance` of the cloud's brightest sample (any
 // light where the cloud has none). One small search per lit lookup (+0.05 % of a blob's
-// instructions).
+// instructions). Not for an empty cloud: an unbounded object, which has its own warning.
 // At 3 spacings (the near field's outer edge), 2 of 15 000 lookups of the CSG difference in
 // Skin1 (a concave edge) and 1 of the bumpy mesh in marble (a self-shadow's edge) counted, their
 // nearest lit samples 3-4.5 spacings away: gaps along edges of the geometry or of the light,
@@ -286,7 +286,7 @@ namespace {
 constexpr double kUnresolvedSpacings = 8;
 void check_resolved(const PointCloud& cloud, const Vec3& x, double h, const Rgb& irradiance_here, double tolerance) {
     const double e = irradiance_here.max_component();
-    if (e > 0 && e >= tolerance * cloud.max_irradiance() && !cloud.lit_within(x, kUnresolvedSpacings * h))
+    if (e > 0 && !cloud.points().empty() && e >= tolerance * cloud.max_irradiance() && !cloud.lit_within(x, kUnresolvedSpacings * h))
         count_unresolved(h);
 }
 
