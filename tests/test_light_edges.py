@@ -23,6 +23,8 @@ Tolerances fixed before measuring.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -105,5 +107,6 @@ def test_a_lit_spot_between_the_samples_is_reported():
         print(f"sample_spacing {spacing}: annulus 2-10 mfp' {out[spacing][0]:.3g}, warned: {UNRESOLVED in r.stderr}")
     glow, log = out[2]
     assert glow == 0 and UNRESOLVED in log and "Give sample_spacing a quarter of the lit" in log
+    assert re.search(r"one at <[-0-9.e]+, [-0-9.e]+, [-0-9.e]+>", log)  # a lit point inside the hole
     glow, log = out[1]
     assert glow > 0 and UNRESOLVED not in log

@@ -645,7 +645,14 @@ TEST(SubsurfaceSampling, ALitSpotBetweenTheSamplesIsCountedForTheWarning) {
         return subsurface_stats().unresolved_lookups - before;
     };
     const Vec3 in_spot(0.3, 0.1, 0), away(-3, -3, 0);
+    const bool first = subsurface_stats().unresolved_lookups == 0;  // (ctest: one test per process)
     EXPECT_EQ(unresolved_after(2.0, in_spot, Rgb(1.0)), 1u);
+    if (first) {  // the statistics name the least such point: the only one
+        const Vec3 at = subsurface_stats().unresolved_at;
+        EXPECT_EQ(at.x, in_spot.x);
+        EXPECT_EQ(at.y, in_spot.y);
+        EXPECT_EQ(at.z, in_spot.z);
+    }
     EXPECT_EQ(unresolved_after(2.0, away, Rgb(0.0)), 0u);
     EXPECT_EQ(unresolved_after(0.05, in_spot, Rgb(1.0)), 0u);
     // An empty cloud (an unbounded object, warned of on its own) counts nothing.

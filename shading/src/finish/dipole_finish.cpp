@@ -298,9 +298,11 @@ std::vector<std::string> finish_statistics() {
         if (ss.unresolved_lookups > 0) {
             // (POV wraps statistics at 80 columns: short lines)
             line("Dipole warning: %.0f lit points with no lit sample within 8 spacings", double(ss.unresolved_lookups));
-            line("  (%g units): a lit area smaller than the sample spacing gets no light", ss.unresolved_spacing);
-            lines.push_back("  under the surface around it. Give sample_spacing a quarter of the lit");
-            lines.push_back("  area's size or less.");
+            line("  (%g units), one at <%.4g, %.4g, %.4g>:", ss.unresolved_spacing, ss.unresolved_at.x,
+                 ss.unresolved_at.y, ss.unresolved_at.z);
+            lines.push_back("  a lit area smaller than the sample spacing gets no light under the");
+            lines.push_back("  surface around it. Give sample_spacing a quarter of the lit area's");
+            lines.push_back("  size or less.");
         }
         const std::size_t shown = 10;  // per-object warnings (small objects): the first few, then a count
         for (std::size_t i = 0; i < ss.notes.size() && i < shown; i++) lines.push_back(ss.notes[i]);

@@ -287,7 +287,7 @@ constexpr double kUnresolvedSpacings = 8;
 void check_resolved(const PointCloud& cloud, const Vec3& x, double h, const Rgb& irradiance_here, double tolerance) {
     const double e = irradiance_here.max_component();
     if (e > 0 && !cloud.points().empty() && e >= tolerance * cloud.max_irradiance() && !cloud.lit_within(x, kUnresolvedSpacings * h))
-        count_unresolved(h);
+        count_unresolved(h, x);
 }
 
 }  // namespace

@@ -23,8 +23,7 @@ std::atomic<std::size_t> g_unbounded{0}, g_thin{0}, g_slab_objects{0};
 std::atomic<int> g_max_levels{0};
 
 struct alignas(64) LookupCounter {
-    std::atomic<std::uint64_t> lookups{0}, visited{0}, slab{0}, unresolved{0};
-    std::atomic<double> unresolved_h{0.0};
+    std::atomic<std::uint64_t> lookups{0}, visited{0}, slab{0};
 };
 
 struct Notes {
@@ -33,6 +32,10 @@ struct Notes {
     std::vector<std::string> notes;
     double finest = 0;
     double thinnest = 0, thinnest_mfp = 0;  // over the objects with slab lookups (0: none)
+    // count_unresolved (rare: under the lock): count, largest spacing, least point (x, y, z)
+    std::size_t unresolved = 0;
+    double unresolved_h = 0;
+    Vec3 unresolved_at;
 };
 Notes& notes() {
     static Notes n;
@@ -73,9 +76,10 @@ SubsurfaceStats subsurface_stats() {
         s.lookups += c->lookups.load(std::memory_order_relaxed);
         s.nodes_visited += c->visited.load(std::memory_order_relaxed);
         s.slab_lookups += c->slab.load(std::memory_order_relaxed);
-        s.unresolved_lookups += c->unresolved.load(std::memory_order_relaxed);
-        s.unresolved_spacing = std::max(s.unresolved_spacing, c->unresolved_h.load(std::memory_order_relaxed));
     }
+    s.unresolved_lookups = n.unresolved;
+    s.unresolved_spacing = n.unresolved_h;
+    s.unresolved_at = n.unresolved_at;
     s.slab_objects = g_slab_objects.load();
     s.thinnest = n.thinnest;
     s.thinnest_mfp = n.thinnest_mfp;
@@ -118,10 +122,15 @@ void count_lookup(std::size_t visited, bool slab) {
     if (slab) bump(c.slab, 1);
 }
 
-void count_unresolved(double h) {
-    LookupCounter& c = thread_counter();
-    bump(c.unresolved, 1);
-    if (h > c.unresolved_h.load(std::memory_order_relaxed)) c.unresolved_h.store(h, std::memory_order_relaxed);
+void count_unresolved(double h, const Vec3& x) {
+    Notes& n = notes();
+    std::lock_guard<std::mutex> lock(n.mutex);
+    // the least point, so that the warning names the same one whatever the threads' order
+    const bool less = x.x < n.unresolved_at.x ||
+                      (x.x == n.unresolved_at.x && (x.y < n.unresolved_at.y || (x.y == n.unresolved_at.y && x.z < n.unresolved_at.z)));
+    if (n.unresolved == 0 || less) n.unresolved_at = x;
+    n.unresolved_h = std::max(n.unresolved_h, h);
+    ++n.unresolved;
 }
 
 std::string small_object_note(const std::string& object, const Vec3& centre, double extent, double L,

@@ -25,9 +25,11 @@ struct SubsurfaceStats {
     // slab profiles.
     std::size_t slab_objects = 0, slab_lookups = 0;
     // Lookups at a lit point with no lit sample within 8 spacings of it (a lit area smaller than
-    // the sample spacing: Subsurface::radiance), and the largest such spacing (scene units).
+    // the sample spacing: Subsurface::radiance), the largest such spacing (scene units) and the
+    // least such point (by x, then y, then z: the same for any thread count).
     std::size_t unresolved_lookups = 0;
     double unresolved_spacing = 0;
+    Vec3 unresolved_at;
     double thinnest = 0, thinnest_mfp = 0;  // 0: none
     std::vector<std::string> notes;  // per-object warnings (small objects), sorted
 };
@@ -53,8 +55,9 @@ void record_cloud(const CloudRecord& r);
 // One lookup (Subsurface::radiance): octree nodes opened, and whether it used slab profiles.
 // Counted per thread, without a lock or a shared cache line.
 void count_lookup(std::size_t visited, bool slab);
-// A lookup at a lit point of spacing h that the cloud saw no light near (SubsurfaceStats).
-void count_unresolved(double h);
+// A lookup at a lit point x of spacing h that the cloud saw no light near (SubsurfaceStats;
+// under a lock: such lookups are few, or the warning is due anyway).
+void count_unresolved(double h, const Vec3& x);
 
 // The warning about an object smaller than 3 diffusion lengths L (scene units; infinite without
 // absorption): `object` as the renderer describes it, its bounding box's centre and largest
