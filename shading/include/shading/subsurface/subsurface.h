@@ -191,8 +191,9 @@ public:
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here) const;
     // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
-    // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R; linear
-    // in ln d between the two thickness nodes around it); at or above it exactly the call above.
+    // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R; between
+    // the two thickness nodes around it, the same face's part linear in ln d, the opposite
+    // face's geometric in d); at or above it exactly the call above.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here, double thickness) const;
 
@@ -205,10 +206,13 @@ private:
     // per channel with the thickness d: whole from 8 transport mfp on, none below 4 (a thin
     // slab's exits spread otherwise). nullptr: no weight for any channel.
     const RadialWeight* slab_weight(double cos_o, double d, RadialWeight* w) const;
-    // One thickness node's radiance at x (cos_o > 0), before interpolation.
+    // One thickness node's radiance at x (cos_o > 0), before interpolation: the node's
+    // profiles on the geometry of x's own thickness (the opposite face's lateral distance is
+    // taken across that thickness, not the node's); *opposite_part: the opposite face's part
+    // of it.
     Rgb slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n, double cos_o,
-                      const Rgb& irradiance_here, int level, std::size_t* visited,
-                      const RadialWeight* weight) const;
+                      double thickness, const Rgb& irradiance_here, int level, std::size_t* visited,
+                      const RadialWeight* weight, Rgb* opposite_part) const;
     Dipole dipole_;
     SubsurfaceSettings settings_;
     std::shared_ptr<const RadialProfile> model_;
