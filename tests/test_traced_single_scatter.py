@@ -109,19 +109,18 @@ def test_on_a_flat_face_the_traced_sum_is_the_formula(fork):
 #: a thin sheet with single scattering traced, against exact transport (issue 31's 3 %), beyond
 #: 4 of the reference's standard errors
 SHEET_TOL = 0.03
-#: the default (the half-space formula on the lit side; the slab's transmitted face holding the
-#: single scattering) on the same sheet: at least this far off on either side (the control;
-#: measured 1.16 lit, 0.48 behind: the blue, alpha' 0.02, whose slab single scattering was held
-#: at the tables' first albedo node until 2026-12-05 and read 3.48 behind)
-SHEET_DEFAULT_OFF = 0.3
+#: (the default, the flat slab's own single scattering at each lookup since 2026-12-06, is held
+#: to the same SHEET_TOL: before, the half-space formula on the lit side and the slab's
+#: transmitted face holding single scattering, it was 1.16 off lit, 0.48 behind)
 
 
 def test_a_back_lit_sheet_counts_single_scattering_once(fork):
     """A Ketchup sheet (eta 1, g 0) 0.25 transport mean free paths thick, lit straight from above,
     seen straight from above and from below: the centre pixels against volume_ref.sheet (a numpy
     photon tracer sharing no code with the library), every channel. Measured (walk_bench):
-    traced 0.50 % (lit side) and 0.56 % (behind); the default +119 % and +49 % (+348 % behind
-    before the tables were continued below their first albedo node)."""
+    traced 0.50 % (lit side) and 0.56 % (behind); the default the same since it adds the flat
+    slab's own single scattering (2026-12-06; before: +119 % and +49 %, +348 % behind before
+    the tables were continued below their first albedo node)."""
     ss, sa = wb.coefficients("Ketchup", 0.0)
     d = 0.25 * wb.longest_mfp("Ketchup")
     views = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
@@ -140,9 +139,9 @@ def test_a_back_lit_sheet_counts_single_scattering_once(fork):
             worst[(extra, k)] = float(rel.max())
             print(f"{extra or 'default':28s} {'lit side' if k == 0 else 'behind  '}: {np.round(100 * (got / want - 1), 2)} % "
                   f"(reference +- {np.round(100 * err / want, 2)} %)")
-    assert worst[("single_scatter_samples 16", 0)] < SHEET_TOL
-    assert worst[("single_scatter_samples 16", 1)] < SHEET_TOL
-    assert min(worst[("", 0)], worst[("", 1)]) > SHEET_DEFAULT_OFF
+    print("worst beyond 4 standard errors:", worst)
+    for key, value in worst.items():
+        assert value < SHEET_TOL, key
 
 
 def test_asking_for_it_with_single_scattering_off_says_so(fork):

@@ -12,6 +12,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "shading/brdf/fresnel.h"
 #include "shading/subsurface/dipole.h"
 #include "shading/subsurface/media_presets.h"
 
@@ -439,6 +440,80 @@ TEST(SingleScatter, ReciprocalAndNonNegativeIncludingGrazing) {
             }
             EXPECT_EQ(d.single_scatter_brdf(Vec3(0, 0, 1), Vec3(0.6, 0, -0.8)).r, 0.0);  // below
         }
+}
+
+// Single scattering of a flat slab (Dipole::single_scatter_slab) against an explicit sum
+// written here: the beam after a reflections between the faces and the ray toward the eye
+// after b, each an exponential in depth integrated in closed form, a, b < 40, each pair with
+// the phase of its own angle (eta 1.3, g 0 and 0.9, reflected and transmitted, thin to thick);
+// kSlabSingleSeries relative (stated before measuring: the series' rounding). And its limits:
+// a thick slab is the half-space's single_scatter_brdf; at eta 1 the closed forms (no
+// reflections).
+constexpr double kSlabSingleSeries = 1e-9;
+TEST(SingleScatter, SlabSumsEveryReflectionBetweenItsFaces) {
+    double worst = 0;
+    for (double g : {0.0, 0.9}) {
+        Medium m = Medium::from_reduced(Rgb(0.8, 0.5, 2.0), Rgb(0.2, 0.5, 0.1), 1.3);
+        m.sigma_s = m.sigma_s_prime() / (1.0 - g);
+        m.g = Rgb(g);
+        const Dipole dip(m);
+        const double eta = m.eta;
+        for (double d : {0.05, 0.4, 3.0}) {
+            for (int through = 0; through < 2; ++through) {
+                const Vec3 wo = spherical_direction(0.6, 0.3);
+                Vec3 wi = spherical_direction(0.9, 2.5);
+                if (through) wi.z = -wi.z;
+                const Rgb got = dip.single_scatter_slab(wo, wi, d);
+                const double ci = std::fabs(wi.z), co = wo.z;
+                const double mi = std::sqrt(1 - (1 - ci * ci) / (eta * eta)), mo = std::sqrt(1 - (1 - co * co) / (eta * eta));
+                const double Ri = fresnel_dielectric(ci, eta), Ro = fresnel_dielectric(co, eta);
+                // propagation directions inside, in the seen face's frame (z up, toward the eye)
+                const Vec3 beam0(-wi.x / eta, -wi.y / eta, through ? mi : -mi);
+                const Vec3 eye0(wo.x / eta, wo.y / eta, mo);
+                for (int c = 0; c < 3; ++c) {
+                    const double st = m.sigma_t()[c];
+                    double sum = 0;
+                    for (int a = 0; a < 40; ++a)
+                        for (int b = 0; b < 40; ++b) {
+                            // depth s below the seen face; the beam's path length L_a(s) = a0 + a1 s,
+                            // the eye's L_b(s) = b0 + b1 s
+                            double a0, a1;
+                            if (!through) {  // enters the seen face: down when a is even
+                                a0 = (a % 2 == 0 ? a : a + 1) * d, a1 = a % 2 == 0 ? 1 : -1;
+                            } else {  // enters the far face: up when a is even
+                                a0 = (a % 2 == 0 ? a + 1 : a) * d, a1 = a % 2 == 0 ? -1 : 1;
+                            }
+                            const double b0 = (b % 2 == 0 ? b : b + 1) * d, b1 = b % 2 == 0 ? 1 : -1;
+                            const Vec3 beam(beam0.x, beam0.y, a % 2 == 0 ? beam0.z : -beam0.z);
+                            const Vec3 eye(eye0.x, eye0.y, b % 2 == 0 ? eye0.z : -eye0.z);
+                            const double k = st * (a1 / mi + b1 / mo), k0 = st * (a0 / mi + b0 / mo);
+                            const double integral =
+                                std::fabs(k) < 1e-14 ? d * std::exp(-k0) : std::exp(-k0) * (1 - std::exp(-k * d)) / k;
+                            sum += std::pow(Ri, a) * std::pow(Ro, b) * henyey_greenstein(dot(beam, eye), g) * integral;
+                        }
+                    const double want = m.sigma_s[c] * (1 - Ri) * (1 - Ro) / (eta * eta * mi * mo) * sum;
+                    worst = std::max(worst, std::fabs(got[c] / want - 1));
+                    EXPECT_NEAR(got[c], want, kSlabSingleSeries * want)
+                        << "g " << g << " d " << d << (through ? " transmitted" : " reflected") << " channel " << c;
+                }
+            }
+        }
+        // a thick slab reflects as the half-space
+        const Vec3 wo = spherical_direction(0.3, 1.0), wi = spherical_direction(1.1, 4.0);
+        const Rgb thick = dip.single_scatter_slab(wo, wi, 1e3), half = dip.single_scatter_brdf(wo, wi);
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(thick[c], half[c], 1e-14 * half[c]);
+        EXPECT_EQ(dip.single_scatter_slab(wo, Vec3(wi.x, wi.y, -wi.z), 1e3).r, 0.0);
+    }
+    std::printf("slab single scattering against the explicit series: worst %.2e relative\n", worst);
+    // eta 1, isotropic: alpha / (4 pi) (1 - e^(-tau (1/mu_i + 1/mu_o))) / (mu_i + mu_o) reflected;
+    // straight through, alpha tau e^(-tau) / (4 pi)
+    const Dipole one(iso(0.7, 1.0, 2.0));
+    const Vec3 wo = spherical_direction(0.4, 0.0), wi = spherical_direction(1.0, 2.0);
+    const double tau = 2.0 * 0.3;
+    EXPECT_NEAR(one.single_scatter_slab(wo, wi, 0.3).r,
+                0.7 / (4 * kPi) * -std::expm1(-tau * (1 / wi.z + 1 / wo.z)) / (wi.z + wo.z), 1e-15);
+    EXPECT_NEAR(one.single_scatter_slab(Vec3(0, 0, 1), Vec3(0, 0, -1), 0.3).r, 0.7 * tau * std::exp(-tau) / (4 * kPi),
+                1e-15);
 }
 
 TEST(SingleScatter, IndexMatchedIsotropicIsLommelSeeliger) {

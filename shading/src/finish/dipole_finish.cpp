@@ -32,6 +32,38 @@ std::string medium_name(const DipoleParams& p, const Medium& m) {
                             : "dipole medium '" + p.preset + "'";
 }
 
+// Thin geometry: single scattering of the flat slab of thickness d at x
+// (Subsurface::slab_single_at_lookup, Dipole::single_scatter_slab), added to what the light
+// loop's BRDF (or the lookup) gives at x, the half-space's: for each light on x's face the
+// difference (light only scatters down to the far face), and for each light on the far side,
+// entering the far face at x - n d (lit as that face: shadows, spotlights), its single
+// scattering toward the eye where the slab's T leaves it out (t_single_apart).
+Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                        double d) {
+    const Frame frame = Frame::from_normal(n);
+    const Vec3 wo = frame.to_local(to_eye);
+    if (!(wo.z > 0)) return Rgb(0.0);
+    const Dipole& dipole = s.dipole();
+    const Rgb apart = s.slab(d).t_single_apart;
+    const bool through = apart.max_component() > 0;
+    const Vec3 far = x - n * d;
+    Rgb out(0.0);
+    for (int i = 0, lights = object.light_count(); i < lights; i++) {
+        Vec3 to_light;
+        if (object.light_direction(i, x, &to_light) && dot(to_light, n) > 0) {
+            const Vec3 wi = frame.to_local(to_light);
+            const Rgb f = dipole.single_scatter_slab(wo, wi, d) - dipole.single_scatter_brdf(wo, wi);
+            if (f.r != 0 || f.g != 0 || f.b != 0) out += object.light_colour(i, x, n, to_light) * f * (kPi * wi.z);
+        }
+        if (through && object.light_direction(i, far, &to_light) && dot(to_light, n) < 0) {
+            const Vec3 wi = frame.to_local(to_light);
+            const Rgb f = dipole.single_scatter_slab(wo, wi, d) * apart;
+            if (f.max_component() > 0) out += object.light_colour(i, far, n * -1.0, to_light) * f * (kPi * -wi.z);
+        }
+    }
+    return out;
+}
+
 // The exact profile of `medium` from subsurface_profiles.ssp and, where found,
 // subsurface_slabs.ssp (without it thin objects use the multipole, and the statistics say so).
 std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const FindFile& find) {
@@ -263,6 +295,8 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     // slab threshold somewhere (thick objects: infinity, no ray)
     const double thickness = subsurface.wants_thickness(*cloud) ? object.thickness(x, n)
                                                                 : std::numeric_limits<double>::infinity();
+    if (thickness < subsurface.slab_threshold() && subsurface.slab_single_at_lookup())
+        single += slab_single_scatter(subsurface, object, x, n, to_eye, thickness);
     return subsurface.radiance(*cloud, x, n, to_eye, e, thickness) + single;
 }
 

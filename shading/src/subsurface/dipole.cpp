@@ -274,6 +274,59 @@ Rgb Dipole::single_scatter_brdf(const Vec3& wo, const Vec3& wi) const {
     return out;
 }
 
+namespace {
+
+// The integral of e^(-k0 - k z) over z in [0, d], without overflow for either sign of k.
+double exp_integral(double k0, double k, double d) {
+    if (k > 0.0) return std::exp(-k0) * -std::expm1(-k * d) / k;
+    if (k < 0.0) return std::exp(-k0 - k * d) * -std::expm1(k * d) / -k;
+    return std::exp(-k0) * d;
+}
+
+}  // namespace
+
+Rgb Dipole::single_scatter_slab(const Vec3& wo, const Vec3& wi, double d) const {
+    if (!(wo.z > 0.0) || !(wi.z != 0.0) || !(d >= 0.0)) return Rgb(0.0);
+    const double eta = medium_.eta, ci = std::fabs(wi.z);
+    const double ft_i = fresnel_transmittance(ci, eta), ft_o = fresnel_transmittance(wo.z, eta);
+    if (!(ft_i > 0.0) || !(ft_o > 0.0)) return Rgb(0.0);
+    const double mi = refracted_cos(ci, eta), mo = refracted_cos(wo.z, eta);
+    if (!(mi > 0.0) || !(mo > 0.0)) return Rgb(0.0);
+    // Scattering angles: the incident beam and the ray toward the eye on opposite vertical
+    // senses (as a half-space reflects) or the same (as light passes through).
+    const double lateral = -(wi.x * wo.x + wi.y * wo.y) / (eta * eta);
+    const double cos_opposed = lateral - mi * mo, cos_along = lateral + mi * mo;
+    const double base = ft_i * ft_o / (eta * eta * mi * mo);
+    const double ri = 1.0 - ft_i, ro = 1.0 - ft_o;  // inside, at the refracted angles
+    const bool through = wi.z < 0.0;
+    const double len = d * medium_.mm_per_unit;
+    Rgb out;
+    const Rgb st = medium_.sigma_t();
+    for (int c = 0; c < 3; ++c) {
+        if (!(st[c] > 0.0)) continue;
+        // Depth z from the face the light enters. The beam: down (toward the far face) Ni e^(-A z),
+        // back up after reflecting there Ni ri e^(-A (2d - z)); the way out toward the eye from a
+        // scattering at z, through the exit face at depth z_x (0: the entry face, d: the far
+        // one): straight Ni.. No e^(-B |z - z_x|), or first off the other face No ro e^(-B (2d -
+        // |z - z_x|)); Ni, No sum the bounces between the faces (DIPOLE.md 5a).
+        const double A = st[c] / mi, B = st[c] / mo;
+        const double Ni = 1.0 / (1.0 - ri * ri * std::exp(-2.0 * A * len));
+        const double No = 1.0 / (1.0 - ro * ro * std::exp(-2.0 * B * len));
+        double opposed, along;
+        if (!through) {
+            opposed = exp_integral(0.0, A + B, len) + ri * ro * exp_integral(2.0 * (A + B) * len, -(A + B), len);
+            along = ro * exp_integral(2.0 * B * len, A - B, len) + ri * exp_integral(2.0 * A * len, B - A, len);
+        } else {
+            along = exp_integral(A * len, B - A, len) + ri * ro * exp_integral((A + 2.0 * B) * len, A - B, len);
+            opposed = ro * exp_integral((A + 2.0 * B) * len, -(A + B), len) + ri * exp_integral(A * len, A + B, len);
+        }
+        const double g = medium_.g[c];
+        out[c] = medium_.sigma_s[c] * base * Ni * No *
+                 (henyey_greenstein(cos_opposed, g) * opposed + henyey_greenstein(cos_along, g) * along);
+    }
+    return out;
+}
+
 std::string SubsurfaceBrdf::describe() const {
     const Medium& m = dipole_.medium();
     char buf[400];

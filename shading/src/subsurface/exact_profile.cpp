@@ -251,6 +251,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
             x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
             out.R_total[c] = x.r->total();
             out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;
+            out.t_single_apart[c] = single_traced ? 1.0 : 0.0;
             if (x.r->total() > 0) cutoff = std::max(cutoff, std::min(x.r->radius_containing(1.0 - 1e-6), 1e6) / st);
             cutoff = std::max(cutoff, std::max(x.multipole.cutoff, 1.0 / st));
             scale = std::min(scale, std::min(1.0 / st, x.multipole.empty ? d : x.multipole.z0));

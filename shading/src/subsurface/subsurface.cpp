@@ -60,8 +60,13 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
         slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
         const double d_min = kSlabMinMfp * mean_free_path();
         if (slab_threshold_ > d_min && d_min > 0) {
+            // (auto_single_scatter holds it under `method auto`; the BRDF's single_scatter else)
+            slab_single_ = !traced_single_scatter() && !directional_ &&
+                           (settings_.method == SubsurfaceSettings::Method::Auto ? settings_.auto_single_scatter
+                                                                                 : settings_.single_scatter);
+            const bool apart = traced_single_scatter() || slab_single_;
             slabs_ = std::make_unique<SlabCache>(d_min, slab_threshold_,
-                                                 [this](double d) { return model_->slab_profiles(dipole_, d, traced_single_scatter()); });
+                                                 [this, apart](double d) { return model_->slab_profiles(dipole_, d, apart); });
         } else {
             slab_threshold_ = 0;  // (a medium without scattering: nothing to do)
         }

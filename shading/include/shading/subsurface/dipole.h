@@ -160,6 +160,16 @@ public:
     // with ti, to the refracted propagation directions inside (DIPOLE.md derives it; the eta^2 is
     // the radiance change across the boundary, checked against the Monte Carlo reference).
     Rgb single_scatter_brdf(const Vec3& wo, const Vec3& wi) const;
+    // The same for a flat slab of thickness d (scene units), in the frame of the face seen (z its
+    // outward normal, wo.z > 0): light on that face (wi.z > 0) is reflected, light entering the
+    // far face (wi.z < 0: wi the direction to the light from the far face, |wi.z| its cosine
+    // there) transmitted. Exact single scattering of the flat slab with Fresnel faces: the
+    // incident beam and the ray toward the eye each reflected between the faces any number of
+    // times (geometric series), each scattering with the phase of its own angle (DIPOLE.md 5a).
+    // d -> infinity gives single_scatter_brdf; eta 1 reflects f_ss (1 - e^(-tau (1/mu_i +
+    // 1/mu_o))) and transmits (sigma_s/sigma_t) p (e^(-tau/mu_o) - e^(-tau/mu_i)) / (mu_o - mu_i),
+    // tau = sigma_t d, mu the refracted cosines.
+    Rgb single_scatter_slab(const Vec3& wo, const Vec3& wi, double d) const;
 
 private:
     Medium medium_;

@@ -82,7 +82,8 @@ private:
 // cover (no tables, or d outside their slab nodes): the multipole with R scaled by `scale`, as
 // make_slab_profiles.
 // `tabulated` (optional): how many channels came from the tables. single_traced: T holds the
-// multiple scattering only (the finish traces single scattering itself, on both faces).
+// multiple scattering only where it comes from the tables (t_single_apart; the finish adds
+// single scattering itself, on both faces).
 SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& dipole, double d, const Rgb& scale,
                                       int* tabulated = nullptr, bool single_traced = false);
 

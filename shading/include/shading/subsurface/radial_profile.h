@@ -65,9 +65,10 @@ public:
     // Thin geometry: the profiles of a slab of thickness d (scene units) of this medium, whose
     // dipole is `dipole`. By default the multipole (slab.h) with R scaled per channel to this
     // profile's half-space total (multipole_scale), so that a slab at the threshold reflects
-    // what the half-space does; T as it is. single_traced: the finish traces single scattering
-    // in the object's shape (`single_scatter_samples`, both faces), so T must leave it out
-    // where it holds it (the exact profile's tables).
+    // what the half-space does; T as it is. single_traced: the finish adds single scattering
+    // itself on both faces (traced in the object's shape, `single_scatter_samples`, or the flat
+    // slab's at each lookup, Subsurface::slab_single_at_lookup), so T must leave it out where
+    // it holds it (the exact profile's tables; SlabProfiles::t_single_apart says where).
     virtual SlabProfiles slab_profiles(const Dipole& dipole, double d, bool single_traced) const;
     // What thin geometry falls back to with this profile, for the statistics ("": nothing).
     virtual std::string slab_note() const { return ""; }

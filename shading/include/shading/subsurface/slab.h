@@ -68,6 +68,9 @@ struct SlabProfiles {
     // face (the tables' R and T faces where they cover the channel, else the model's
     // half-space factor).
     std::function<void(double cos_o, Rgb* same, Rgb* opposite)> exit;
+    // Per channel: T leaves single scattering out (1; the exact tables' channels, made with
+    // single_apart: the finish adds the slab's own single scattering) or holds every order (0).
+    Rgb t_single_apart;
 };
 // `scale`: per channel, multiplies R (and its total): 1 for the dipole; for another half-space
 // model (the exact profile) its total over the dipole's (RadialProfile::slab_profiles), so

@@ -132,6 +132,12 @@ public:
     const RandomWalk* walk() const { return walk_.get(); }
     // Whether single scattering is traced in the object's shape at each lookup.
     bool traced_single_scatter() const { return settings_.single_scatter_points > 0 && settings_.auto_single_scatter; }
+    // Thin geometry: whether a point thinner than slab_threshold() gets the flat slab's own
+    // single scattering at its lookup (Dipole::single_scatter_slab, dipole_finish.cpp): single
+    // scattering on (from the BRDF or at each lookup), not traced, not direction-aware. The
+    // half-space term the BRDF adds is then corrected for the far face, and light entering the
+    // far face is scattered once toward the eye (the slab's T leaves it out, t_single_apart).
+    bool slab_single_at_lookup() const { return slab_single_; }
     // Whether lookups use the profile's entry shifts (settings.directional and a profile with
     // them: shading/DIPOLE.md 6b).
     bool directional() const { return directional_; }
@@ -219,6 +225,7 @@ private:
     std::shared_ptr<const RdProfile> profile_;
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
+    bool slab_single_ = false;
     bool directional_ = false;  // the profile has entry shifts and settings.directional is on
     Rgb curvature_length_;      // settings.curvature: c(eta, alpha') mfp' per channel, else 0
     bool curving_ = false;      // some channel's curvature_length_ is not 0
