@@ -129,6 +129,12 @@ box {{ <-100, -100, -60>, <100, 100, 0> texture {{ pigment {{ rgb 1 }} finish {{
 """
 
 
+#: The edge scene's equal-error speed is measured in an image of the same area with this many
+#: times the pixels each way (160 x 64: the profile's cloud is built once per object, so a
+#: 20 x 8 image charges it to 160 pixels; a user's image spreads it over tens of thousands).
+SPEED_SCALE = 8
+
+
 def plate_edge(theta: float) -> float:
     """Where the plate (its underside 0.002 mm above the surface: beyond POV's 0.001 shadow
     tolerance) must end for its shadow on the surface to end at x = 0 under light at theta."""
@@ -175,6 +181,18 @@ def edge_rows(args, fork) -> list[dict]:
                             # the profile's max |error| (a fraction of the plateau), the same image
                             e = row["profile"]["max_diff"]
                             row[method]["equal_error_seconds"] = (sec / args.samples) * (per_walk / (e * math.sqrt(ny))) ** 2
+                            # ... and per pixel, in an image of the same area at SPEED_SCALE x the
+                            # pixels each way: the profile's own time there (its cloud is built once
+                            # per object, as in any image), the walk's its time per walk and pixel
+                            # here times the walks per pixel whose noise is the profile's max |error|
+                            big = render(EDGE.format(width=nx * step, height=ny * step, light=vec(to_light),
+                                                     edge=plate_edge(t), dipole=medium_text(name, g, eta)),
+                                         nx * SPEED_SCALE, ny * SPEED_SCALE, fork)
+                            walks = (per_walk / e) ** 2
+                            walk_s = sec / (nx * ny * args.samples) * walks * nx * ny * SPEED_SCALE ** 2
+                            row[method]["speed"] = dict(pixels=[nx * SPEED_SCALE, ny * SPEED_SCALE], walks=walks,
+                                                        walk_seconds=walk_s, profile_seconds=big[1],
+                                                        ratio=walk_s / big[1])
                     row["ref_edge"] = (ref.radiance[:, nx // 2] / plateau).round(3).tolist()  # x = +0.25 mm
                     row["xs"] = xs.tolist()
                     row["ref_profile"] = (ref.radiance / plateau[:, None]).round(5).tolist()  # per channel / plateau
@@ -415,7 +433,10 @@ def report(row: dict) -> None:
                 f"{100 * d['plateau']:5.2f} % edge {d['edge']} {d['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
                 f"edge {w['edge']} {w['seconds']:6.2f} s (its noise {100 * w['noise']:.1f} %, per walk {w['per_walk']:.1f}, "
                 f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s; at the profile's error "
-                f"{w['equal_error_seconds']:.3g} s, {w['equal_error_seconds'] / p['seconds']:.3g}x the profile) | auto ({row['auto']['chose']}) max "
+                f"{w['equal_error_seconds']:.3g} s, {w['equal_error_seconds'] / p['seconds']:.3g}x the profile; "
+                f"per pixel at {w['speed']['pixels'][0]}x{w['speed']['pixels'][1]}: {w['speed']['walks']:.3g} walks, "
+                f"{w['speed']['walk_seconds']:.3g} s against {w['speed']['profile_seconds']:.2f} s, "
+                f"{w['speed']['ratio']:.3g}x) | auto ({row['auto']['chose']}) max "
                 f"{100 * row['auto']['max_diff']:6.2f} % plateau {100 * row['auto']['plateau']:5.2f} % "
                 f"{row['auto']['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
@@ -496,6 +517,10 @@ def summary(rows: Sequence[dict]) -> list[dict]:
                 other = f"pixel rms {100 * m['rms']:.1f} %"
             if key == "auto":
                 other = (other + ", " if other else "") + f"chose the {m.get('chose', '?')}"
+            if key == "walk" and m.get("speed"):
+                sp = m["speed"]
+                other = (f"at the profile's error per pixel ({sp['pixels'][0]} x {sp['pixels'][1]}): "
+                         f"{sp['walk_seconds']:.3g} s, {sp['ratio']:.3g}x the profile's")
             out.append({"scene": f"{case}, {where}", "method": label, "error": m[err], "error is": what,
                         "other": other, "trace s": m["seconds"]})
     return out
