@@ -273,6 +273,44 @@ TEST(SlabSubsurface, ThickBackLitSlabTransmitsItsOwnThicknessesLight) {
     }
 }
 
+// The two thickness nodes around a point are summed in one traversal of the cloud
+// (PointCloud::SecondProfiles): each node's result as its own traversal gives it, within
+// kPairedTraversal relative (stated before measuring: the shared traversal aggregates no
+// coarser than either alone, so only the aggregation error differs), both faces.
+constexpr double kPairedTraversal = 2e-3;  // docs/claims.md
+TEST(SlabSubsurface, TwoNodesInOneTraversalMatchTheirOwnTraversals) {
+    const Medium m = Medium::from_reduced(Rgb(0.74, 0.88, 1.01), Rgb(0.032, 0.17, 0.48), 1.0, 1.0);
+    Subsurface s(m, SubsurfaceSettings{});
+    const double d = 3.0;
+    const SlabProfiles& a = s.slab(d);
+    const SlabProfiles& b = s.slab(d * 1.1);
+    ASSERT_NE(&a, &b);
+    double worst = 0;
+    int key[2];
+    for (int back = 0; back < 2; ++back) {
+        SheetSampler sampler(40.0, d, [back](const Vec3&, const Vec3& n) { return Rgb(back ? (n.z < -0.5) : (n.z > 0.5)); });
+        const PointCloud& c = s.cloud(&key[back], sampler);
+        const Vec3 x(0.3, -0.2, d), up(0, 0, 1);
+        const double h = c.level_spacing(c.lookup_level(x)), r0 = 2 * h;
+        const Rgb na = a.transmit->near_reflectance(h), nb = b.transmit->near_reflectance(h);
+        Rgb opp_a, opp_b, pair_b, pair_opp_b, pair_opp_a;
+        const Rgb alone_a = c.far_exitance_sided(*a.same, *a.transmit, x, up, d, r0, h, 0.7, na, nullptr, &opp_a);
+        const Rgb alone_b = c.far_exitance_sided(*b.same, *b.transmit, x, up, d, r0, h, 0.7, nb, nullptr, &opp_b);
+        const PointCloud::SecondProfiles second{b.same.get(), b.transmit.get(), nb, &pair_b, &pair_opp_b};
+        const Rgb pair_a = c.far_exitance_sided(*a.same, *a.transmit, x, up, d, r0, h, 0.7, na, nullptr, &pair_opp_a,
+                                                nullptr, &second);
+        for (int k = 0; k < 3; ++k) {
+            ASSERT_GT(alone_a[k], 0.0);
+            ASSERT_GT(alone_b[k], 0.0);
+            for (double e : {pair_a[k] / alone_a[k] - 1, pair_b[k] / alone_b[k] - 1}) worst = std::max(worst, std::fabs(e));
+            EXPECT_NEAR(pair_a[k], alone_a[k], kPairedTraversal * alone_a[k]) << back << " " << k;
+            EXPECT_NEAR(pair_b[k], alone_b[k], kPairedTraversal * alone_b[k]) << back << " " << k;
+            EXPECT_NEAR(pair_opp_b[k], opp_b[k], kPairedTraversal * alone_b[k]) << back << " " << k;
+        }
+    }
+    std::printf("two thickness nodes in one traversal against one each: worst %.2e relative\n", worst);
+}
+
 // The radiance at a thin point is continuous in its thickness: over an octave of thicknesses
 // 1/512 octave apart, no step between neighbours is larger than 3x the median step (stated
 // before measuring; a lookup at the nearest thickness node instead has steps of 1-2 % at the

@@ -37,7 +37,10 @@ std::string medium_name(const DipoleParams& p, const Medium& m) {
 // loop's BRDF (or the lookup) gives at x, the half-space's: for each light on x's face the
 // difference (light only scatters down to the far face), and for each light on the far side,
 // entering the far face at x - n d (lit as that face: shadows, spotlights), its single
-// scattering toward the eye where the slab's T leaves it out (t_single_apart).
+// scattering toward the eye where the slab's T leaves it out (t_single_apart). A term below
+// kSlabSingleNegligible of the half-space's single scattering for the same angles (a lit
+// face's) is skipped with its shadow ray (the far face of a slab several mean free paths thick).
+constexpr double kSlabSingleNegligible = 1e-6;
 Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                         double d) {
     const Frame frame = Frame::from_normal(n);
@@ -52,13 +55,17 @@ Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x
         Vec3 to_light;
         if (object.light_direction(i, x, &to_light) && dot(to_light, n) > 0) {
             const Vec3 wi = frame.to_local(to_light);
-            const Rgb f = dipole.single_scatter_slab(wo, wi, d) - dipole.single_scatter_brdf(wo, wi);
-            if (f.r != 0 || f.g != 0 || f.b != 0) out += object.light_colour(i, x, n, to_light) * f * (kPi * wi.z);
+            const Rgb half = dipole.single_scatter_brdf(wo, wi);
+            const Rgb f = dipole.single_scatter_slab(wo, wi, d) - half;
+            if ((f * -1.0).max_component() > kSlabSingleNegligible * half.max_component())
+                out += object.light_colour(i, x, n, to_light) * f * (kPi * wi.z);
         }
         if (through && object.light_direction(i, far, &to_light) && dot(to_light, n) < 0) {
             const Vec3 wi = frame.to_local(to_light);
             const Rgb f = dipole.single_scatter_slab(wo, wi, d) * apart;
-            if (f.max_component() > 0) out += object.light_colour(i, far, n * -1.0, to_light) * f * (kPi * -wi.z);
+            const double lit_face = dipole.single_scatter_brdf(wo, Vec3(wi.x, wi.y, -wi.z)).max_component();
+            if (f.max_component() > kSlabSingleNegligible * lit_face)
+                out += object.light_colour(i, far, n * -1.0, to_light) * f * (kPi * -wi.z);
         }
     }
     return out;

@@ -42,9 +42,11 @@ Rgb PointCloud::far_exitance(const RdProfile& rd, const Vec3& x, double r0, doub
 
 Rgb PointCloud::far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                    double d, double r0, double h, double max_angle, const Rgb& near_opposite,
-                                   std::size_t* visited, Rgb* opposite, const RadialWeight* weight) const {
-    return far_sum<true>(same, &transmit, x, nx, d, r0, h, max_angle, sqr(same.r_max()), near_opposite, visited,
-                         opposite, weight);
+                                   std::size_t* visited, Rgb* opposite, const RadialWeight* weight,
+                                   const SecondProfiles* second) const {
+    const double cut = second ? std::max(same.r_max(), second->same->r_max()) : same.r_max();
+    return far_sum<true>(same, &transmit, x, nx, d, r0, h, max_angle, sqr(cut), near_opposite, visited, opposite,
+                         weight, second);
 }
 
 Rgb PointCloud::far_exitance_exact(const RdProfile& rd, const Vec3& x, double r0, double h,
@@ -60,12 +62,16 @@ Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile&
 template <bool kSided>
 Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d,
                         double r0, double h, double max_angle, double cut_same2, const Rgb& near_opposite,
-                        std::size_t* visited, Rgb* opposite, const RadialWeight* weight) const {
+                        std::size_t* visited, Rgb* opposite, const RadialWeight* weight,
+                        const SecondProfiles* second) const {
     Rgb sum, opp_sum;  // the opposite face's part of sum (added to both: sum's order as before)
+    Rgb sum2, opp_sum2;  // the same for `second` (kSided only)
     if (opposite) *opposite = Rgb(0.0);
+    if (kSided && second) *second->result = *second->opposite = Rgb(0.0);
     if (nodes_.empty()) return sum;
     const double inner2 = sqr(std::max(0.0, r0 - h)), outer = r0 + h, outer2 = outer * outer;
-    const double d2 = d * d, cut_t = kSided ? transmit->r_max() : 0.0;
+    const double d2 = d * d;
+    const double cut_t = !kSided ? 0.0 : second ? std::max(transmit->r_max(), second->transmit->r_max()) : transmit->r_max();
     // rho >= sqrt(s^2 - d^2): nothing of T beyond s^2 = r_max^2 + d^2
     const double cut_opp2 = cut_t * cut_t + d2;
     const double cut2 = kSided ? std::max(cut_same2, cut_opp2) : cut_same2;
@@ -114,6 +120,11 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
                 const Rgb t = transmit->rd(rho) * s.flux * w;
                 sum += t;
                 opp_sum += t;
+                if (kSided && second) {
+                    const Rgb t2 = second->transmit->rd(rho) * s.flux * w;
+                    sum2 += t2;
+                    opp_sum2 += t2;
+                }
             }
             return;
         }
@@ -123,6 +134,10 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
         const double w = r2 >= outer2 ? 1.0 : window(r, r0, h);
         const Rgb e = same.rd(r) * s.flux * w;
         sum += weight ? e * weight->at(r) : e;
+        if (kSided && second) {
+            const Rgb e2 = second->same->rd(r) * s.flux * w;
+            sum2 += weight ? e2 * weight->at(r) : e2;
+        }
     };
     while (top > 0) {
         --top;
@@ -164,11 +179,14 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
             const Agg& g = aggs_[k];
             const Vec3 v = g.centre - x;
             const double dc2 = dot(v, v);
-            if (double(nd.diag2) < angle2 * std::min(same.angle_gain2(dc2), gain_cap) * dc2) {
+            double gain = same.angle_gain2(dc2);
+            if (kSided && second) gain = std::min(gain, second->same->angle_gain2(dc2));
+            if (double(nd.diag2) < angle2 * std::min(gain, gain_cap) * dc2) {
                 const Rgb e = aggregate_exitance(same, g.cov, g.flux, v, dc2, weight);
                 sum.r += e.r;
                 sum.g += e.g;
                 sum.b += e.b;
+                if (kSided && second) sum2 += aggregate_exitance(*second->same, g.cov, g.flux, v, dc2, weight);
                 continue;
             }
         } else if (kSided && agg_side == 2) {
@@ -202,6 +220,14 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
                 sum.g += t.g;
                 sum.b += t.b;
                 opp_sum += t;
+                if (kSided && second) {
+                    second->transmit->eval(rho, &f0, &f1, &f2);
+                    const Rgb t2(std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r,
+                                 std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g,
+                                 std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b);
+                    sum2 += t2;
+                    opp_sum2 += t2;
+                }
                 continue;
             }
         }
@@ -216,8 +242,17 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
         const Rgb t = near_opposite * near_flux * (1.0 / near_area);
         sum += t;
         opp_sum += t;
+        if (second) {
+            const Rgb t2 = second->near_opposite * near_flux * (1.0 / near_area);
+            sum2 += t2;
+            opp_sum2 += t2;
+        }
     }
     if (opposite) *opposite = opp_sum;
+    if (kSided && second) {
+        *second->result = sum2;
+        *second->opposite = opp_sum2;
+    }
     return sum;
 }
 

@@ -389,11 +389,10 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     std::size_t visited = 0;
     RadialWeight weight;
     const RadialWeight* wt = slab_weight(cos_o, thickness, &weight);
-    Rgb opposite;
-    Rgb m = slab_radiance(*slab.a, cloud, x, n, cos_o, thickness, irradiance_here, level, &visited, wt, &opposite);
+    Rgb opposite, mb, opposite_b;
+    Rgb m = slab_radiance(*slab.a, slab.b, cloud, x, n, cos_o, thickness, irradiance_here, level, &visited, wt, &opposite,
+                          &mb, &opposite_b);
     if (slab.b) {
-        Rgb opposite_b;
-        const Rgb mb = slab_radiance(*slab.b, cloud, x, n, cos_o, thickness, irradiance_here, level, &visited, wt, &opposite_b);
         const double u = (thickness - slab.a->p.d) / (slab.b->p.d - slab.a->p.d);
         for (int c = 0; c < 3; ++c) {
             const double same = (m[c] - opposite[c]) * (1.0 - slab.t) + (mb[c] - opposite_b[c]) * slab.t;
@@ -406,32 +405,50 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     return curved(m, cloud, x, n, level);
 }
 
-Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n,
-                              double cos_o, double thickness, const Rgb& irradiance_here, int level, std::size_t* visited,
-                              const RadialWeight* weight, Rgb* opposite_part) const {
-    const SlabProfiles& p = node.p;
+Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud,
+                              const Vec3& x, const Vec3& n, double cos_o, double thickness, const Rgb& irradiance_here,
+                              int level, std::size_t* visited, const RadialWeight* weight, Rgb* opposite_part,
+                              Rgb* result_b, Rgb* opposite_part_b) const {
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
-    Rgb near_same, near_opposite;
-    node.near(h, &near_same, &near_opposite);
-    Rgb opposite;
+    Rgb near_same[2], near_opposite[2];
+    node.near(h, &near_same[0], &near_opposite[0]);
+    if (node_b) node_b->near(h, &near_same[1], &near_opposite[1]);
+    Rgb m[2], opposite[2];
     std::size_t seen = 0;
+    // Both nodes in one traversal of the cloud (the second's sums beside the first's).
     // rho across x's own thickness: with the node's (up to 9 % thinner) every point of a flat
     // far face would sit at least sqrt(thickness^2 - p.d^2) (0.42 thickness) off x's normal,
     // past T's peak: a back-lit Skin1 slab 8 mfp' thick rendered 7 / 12 / 23 % dark between nodes.
-    Rgb m = cloud.far_exitance_sided(*p.same, *p.transmit, x, n, thickness, r0, h, settings_.max_angle, near_opposite, &seen,
-                                     &opposite, weight);
+    const PointCloud::SecondProfiles second{node_b ? node_b->p.same.get() : nullptr,
+                                            node_b ? node_b->p.transmit.get() : nullptr, near_opposite[1], &m[1],
+                                            &opposite[1]};
+    m[0] = cloud.far_exitance_sided(*node.p.same, *node.p.transmit, x, n, thickness, r0, h, settings_.max_angle,
+                                    near_opposite[0], &seen, &opposite[0], weight, node_b ? &second : nullptr);
     *visited += seen;
-    m += irradiance_here * near_same * (weight ? near_weight(*weight, h) : Rgb(1.0));
-    if (!p.exit) {
-        const Rgb f = model_->exit_factor(cos_o);
-        *opposite_part = opposite * f;
-        return m * f;
+    const Rgb near = irradiance_here * (weight ? near_weight(*weight, h) : Rgb(1.0));
+    Rgb out[2];
+    for (int k = 0; k < (node_b ? 2 : 1); ++k) {
+        const SlabProfiles& p = (k == 0 ? node : *node_b).p;
+        m[k] += near * near_same[k];
+        if (!p.exit) {
+            const Rgb f = model_->exit_factor(cos_o);
+            opposite[k] = opposite[k] * f;
+            out[k] = m[k] * f;
+            continue;
+        }
+        // The exact slab tables: each face's own exit distribution (DIPOLE.md 6a).
+        Rgb same_exit, opposite_exit;
+        p.exit(cos_o, &same_exit, &opposite_exit);
+        const Rgb opp = opposite[k] * opposite_exit;
+        out[k] = (m[k] - opposite[k]) * same_exit + opp;
+        opposite[k] = opp;
     }
-    // The exact slab tables: each face's own exit distribution (DIPOLE.md 6a).
-    Rgb same_exit, opposite_exit;
-    p.exit(cos_o, &same_exit, &opposite_exit);
-    *opposite_part = opposite * opposite_exit;
-    return (m - opposite) * same_exit + *opposite_part;
+    *opposite_part = opposite[0];
+    if (node_b) {
+        *result_b = out[1];
+        *opposite_part_b = opposite[1];
+    }
+    return out[0];
 }
 
 // ---------------------------------------------------------------- the surface part

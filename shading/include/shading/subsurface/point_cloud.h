@@ -104,10 +104,20 @@ public:
     // aggregated per side: by their normal cone (or, for a one-sheeted node crossing the
     // plane of nx, its axis); a node holding both faces of a sheet is opened. `opposite`
     // (optional): the opposite face's part of the result. `weight` (optional): on `same` only.
+    // `second` (optional): a second pair of profiles (the other thickness node around d) summed
+    // in the same traversal, into *second->result and *second->opposite; the traversal's
+    // cutoffs are the larger of the two profiles', its aggregation the stricter.
+    struct SecondProfiles {
+        const RdProfile* same;
+        const RdProfile* transmit;
+        Rgb near_opposite;
+        Rgb* result;
+        Rgb* opposite;
+    };
     Rgb far_exitance_sided(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx, double d,
                            double r0, double h, double max_angle, const Rgb& near_opposite,
                            std::size_t* visited = nullptr, Rgb* opposite = nullptr,
-                           const RadialWeight* weight = nullptr) const;
+                           const RadialWeight* weight = nullptr, const SecondProfiles* second = nullptr) const;
     // The same without aggregation or cutoff, with the profiles' exact callables: the reference.
     Rgb far_exitance_sided_exact(const RdProfile& same, const RdProfile& transmit, const Vec3& x, const Vec3& nx,
                                  double d, double r0, double h, const Rgb& near_opposite) const;
@@ -218,7 +228,7 @@ private:
     template <bool kSided>
     Rgb far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,
                 double h, double max_angle, double cut_same2, const Rgb& near_opposite, std::size_t* visited,
-                Rgb* opposite, const RadialWeight* weight) const;
+                Rgb* opposite, const RadialWeight* weight, const SecondProfiles* second = nullptr) const;
     // far_exitance_exact and far_exitance_sided_exact.
     template <bool kSided>
     Rgb exact_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d, double r0,

@@ -215,10 +215,12 @@ private:
     // One thickness node's radiance at x (cos_o > 0), before interpolation: the node's
     // profiles on the geometry of x's own thickness (the opposite face's lateral distance is
     // taken across that thickness, not the node's); *opposite_part: the opposite face's part
-    // of it.
-    Rgb slab_radiance(const SlabCache::Node& node, const PointCloud& cloud, const Vec3& x, const Vec3& n, double cos_o,
-                      double thickness, const Rgb& irradiance_here, int level, std::size_t* visited,
-                      const RadialWeight* weight, Rgb* opposite_part) const;
+    // of it. node_b (optional): the other node around the thickness, in the same traversal of
+    // the cloud, into *result_b and *opposite_part_b.
+    Rgb slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud, const Vec3& x,
+                      const Vec3& n, double cos_o, double thickness, const Rgb& irradiance_here, int level,
+                      std::size_t* visited, const RadialWeight* weight, Rgb* opposite_part, Rgb* result_b,
+                      Rgb* opposite_part_b) const;
     Dipole dipole_;
     SubsurfaceSettings settings_;
     std::shared_ptr<const RadialProfile> model_;
