@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -30,45 +31,6 @@ std::string medium_name(const DipoleParams& p, const Medium& m) {
     };
     return p.preset.empty() ? "dipole medium sigma_s' " + rgb(m.sigma_s_prime()) + " sigma_a " + rgb(m.sigma_a)
                             : "dipole medium '" + p.preset + "'";
-}
-
-// Thin geometry: single scattering of the flat slab of thickness d at x
-// (Subsurface::slab_single_at_lookup, Dipole::single_scatter_slab), added to what the light
-// loop's BRDF (or the lookup) gives at x, the half-space's: for each light on x's face the
-// difference (light only scatters down to the far face), and for each light on the far side,
-// entering the far face at x - n d (lit as that face: shadows, spotlights), its single
-// scattering toward the eye where the slab's T leaves it out (t_single_apart). A term below
-// kSlabSingleNegligible of the half-space's single scattering for the same angles (a lit
-// face's) is skipped with its shadow ray (the far face of a slab several mean free paths thick).
-constexpr double kSlabSingleNegligible = 1e-6;
-Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                        double d) {
-    const Frame frame = Frame::from_normal(n);
-    const Vec3 wo = frame.to_local(to_eye);
-    if (!(wo.z > 0)) return Rgb(0.0);
-    const Dipole& dipole = s.dipole();
-    const Rgb apart = s.slab(d).t_single_apart;
-    const bool through = apart.max_component() > 0;
-    const Vec3 far = x - n * d;
-    Rgb out(0.0);
-    for (int i = 0, lights = object.light_count(); i < lights; i++) {
-        Vec3 to_light;
-        if (object.light_direction(i, x, &to_light) && dot(to_light, n) > 0) {
-            const Vec3 wi = frame.to_local(to_light);
-            const Rgb half = dipole.single_scatter_brdf(wo, wi);
-            const Rgb f = dipole.single_scatter_slab(wo, wi, d) - half;
-            if ((f * -1.0).max_component() > kSlabSingleNegligible * half.max_component())
-                out += object.light_colour(i, x, n, to_light) * f * (kPi * wi.z);
-        }
-        if (through && object.light_direction(i, far, &to_light) && dot(to_light, n) < 0) {
-            const Vec3 wi = frame.to_local(to_light);
-            const Rgb f = dipole.single_scatter_slab(wo, wi, d) * apart;
-            const double lit_face = dipole.single_scatter_brdf(wo, Vec3(wi.x, wi.y, -wi.z)).max_component();
-            if (f.max_component() > kSlabSingleNegligible * lit_face)
-                out += object.light_colour(i, far, n * -1.0, to_light) * f * (kPi * -wi.z);
-        }
-    }
-    return out;
 }
 
 // The exact profile of `medium` from subsurface_profiles.ssp and, where found,
@@ -248,6 +210,43 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
                                                                              "stands for it; add single_scatter on to "
                                                                              "trace it)")});
     return model;
+}
+
+// (dipole_finish.h) A term below kSlabSingleNegligible of the half-space's single scattering
+// for the same angles (a lit face's) is skipped with its shadow ray (the far face of a slab
+// several mean free paths thick).
+constexpr double kSlabSingleNegligible = 1e-6;
+
+Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                        double d) {
+    const Frame frame = Frame::from_normal(n);
+    const Vec3 wo = frame.to_local(to_eye);
+    if (!(wo.z > 0)) return Rgb(0.0);
+    const Dipole& dipole = s.dipole();
+    const Rgb apart = s.slab(d).t_single_apart;
+    const bool through = apart.max_component() > 0;
+    const Vec3 far = x - n * d;
+    Rgb out(0.0);
+    for (int i = 0, lights = object.light_count(); i < lights; i++) {
+        Vec3 to_light;
+        if (object.light_direction(i, x, &to_light) && dot(to_light, n) > 0) {
+            const Vec3 wi = frame.to_local(to_light);
+            const Rgb half = dipole.single_scatter_brdf(wo, wi);
+            // (less than the half-space's where the far face cuts the depth short, more where it
+            // reflects much back: thin, at eta > 1 and grazing angles)
+            const Rgb f = dipole.single_scatter_slab(wo, wi, d) - half;
+            if (std::max({std::fabs(f.r), std::fabs(f.g), std::fabs(f.b)}) > kSlabSingleNegligible * half.max_component())
+                out += object.light_colour(i, x, n, to_light) * f * (kPi * wi.z);
+        }
+        if (through && object.light_direction(i, far, &to_light) && dot(to_light, n) < 0) {
+            const Vec3 wi = frame.to_local(to_light);
+            const Rgb f = dipole.single_scatter_slab(wo, wi, d) * apart;
+            const double lit_face = dipole.single_scatter_brdf(wo, Vec3(wi.x, wi.y, -wi.z)).max_component();
+            if (f.max_component() > kSlabSingleNegligible * lit_face)
+                out += object.light_colour(i, far, n * -1.0, to_light) * f * (kPi * -wi.z);
+        }
+    }
+    return out;
 }
 
 Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, DipoleObject& object, const Vec3& x,

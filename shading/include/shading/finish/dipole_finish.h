@@ -105,6 +105,17 @@ public:
     }
 };
 
+// Thin geometry (Subsurface::slab_single_at_lookup): what single scattering of the flat slab of
+// thickness d at x adds to the half-space's that the light loop's BRDF (or the lookup) gives
+// there, over `object`'s lights: for each light on x's face the slab's less the half-space's
+// (less where the far face cuts the depth short, more where it reflects much back: thin, ior >
+// 1, grazing), for each light on the far side the light entering the far face at x - n d (lit
+// as that face) scattered once toward the eye where the slab's T leaves it out
+// (SlabProfiles::t_single_apart). Terms below 1e-6 of a lit face's single scattering are
+// skipped with their shadow rays. Dipole::single_scatter_slab; shading/DIPOLE.md 5a.
+Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                        double d);
+
 // pixel += finish_subsurface_radiance(...): the light that entered `model`'s medium on the object
 // `key` (the object's identity) and leaves at x (unit normal n) toward to_eye. The object's
 // point cloud is sampled through `object` on first use; `here()` is E_t at x itself, asked for
