@@ -69,7 +69,7 @@ struct SlabProfiles {
     // half-space factor).
     std::function<void(double cos_o, Rgb* same, Rgb* opposite)> exit;
     // Per channel: T leaves single scattering out (1; the exact tables' channels, made with
-    // single_apart: the finish adds the slab's own single scattering) or holds every order (0).
+    // single_traced: the finish adds the slab's own single scattering) or holds every order (0).
     Rgb t_single_apart;
 };
 // `scale`: per channel, multiplies R (and its total): 1 for the dipole; for another half-space
