@@ -133,11 +133,14 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
         const double r = std::sqrt(r2);
         const double w = r2 >= outer2 ? 1.0 : window(r, r0, h);
         const Rgb e = same.rd(r) * s.flux * w;
-        sum += weight ? e * weight->at(r) : e;
-        if (kSided && second) {
-            const Rgb e2 = second->same->rd(r) * s.flux * w;
-            sum2 += weight ? e2 * weight->at(r) : e2;
+        if (!weight) {
+            sum += e;
+            if (kSided && second) sum2 += second->same->rd(r) * s.flux * w;
+            return;
         }
+        const Rgb wr = weight->at(r);
+        sum += e * wr;
+        if (kSided && second) sum2 += second->same->rd(r) * s.flux * w * wr;
     };
     while (top > 0) {
         --top;
@@ -211,20 +214,21 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
                 };
                 const double uCu = quad(u), nCn = quad(nx);
                 const double a = 0.5 * uCu, b = 0.5 * std::max(0.0, C[0] + C[1] + C[2] - nCn - uCu) / rho;
-                Rgb f0, f1, f2;
-                transmit->eval(rho, &f0, &f1, &f2);
-                const Rgb t(std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r,
-                            std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g,
-                            std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b);
+                // T at rho plus the second-order term, times the node's flux, never below 0
+                auto expanded = [&](const RdProfile& tp) {
+                    Rgb f0, f1, f2;
+                    tp.eval(rho, &f0, &f1, &f2);
+                    return Rgb(std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r,
+                               std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g,
+                               std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b);
+                };
+                const Rgb t = expanded(*transmit);
                 sum.r += t.r;
                 sum.g += t.g;
                 sum.b += t.b;
                 opp_sum += t;
                 if (kSided && second) {
-                    second->transmit->eval(rho, &f0, &f1, &f2);
-                    const Rgb t2(std::max(0.0, f0.r + a * f2.r + b * f1.r) * g.flux.r,
-                                 std::max(0.0, f0.g + a * f2.g + b * f1.g) * g.flux.g,
-                                 std::max(0.0, f0.b + a * f2.b + b * f1.b) * g.flux.b);
+                    const Rgb t2 = expanded(*second->transmit);
                     sum2 += t2;
                     opp_sum2 += t2;
                 }
