@@ -134,9 +134,10 @@ public:
     bool traced_single_scatter() const { return settings_.single_scatter_points > 0 && settings_.auto_single_scatter; }
     // Thin geometry: whether a point thinner than slab_threshold() gets the flat slab's own
     // single scattering at its lookup (Dipole::single_scatter_slab, dipole_finish.cpp): single
-    // scattering on (from the BRDF or at each lookup), not traced, not direction-aware. The
-    // half-space term the BRDF adds is then corrected for the far face, and light entering the
-    // far face is scattered once toward the eye (the slab's T leaves it out, t_single_apart).
+    // scattering on (from the BRDF or at each lookup), not traced. The half-space term the BRDF
+    // (or a direction-aware lookup, lit from upstream) adds is then corrected for the far face,
+    // and light entering the far face is scattered once toward the eye (the slab's T leaves it
+    // out, t_single_apart).
     bool slab_single_at_lookup() const { return slab_single_; }
     // Whether lookups use the profile's entry shifts (settings.directional and a profile with
     // them: shading/DIPOLE.md 6b).
