@@ -1,8 +1,8 @@
 // Thin geometry of the dipole finish (shading/DIPOLE.md section 6a): three sheets of the same
 // medium, 0.5, 2 and 8 mm thick, and a 40 mm block, lit from behind by a warm parallel light and
 // from the front by a dim blue fill. Light diffusing through the thin sheets glows on their
-// front faces (the transmission profile T of a slab of each one's thickness); the block stays
-// dark where only the back is lit. `thin_geometry off` in Wax shows the half-space dipole.
+// front faces (the transmission profile T of a slab of each one's thickness); through the block
+// little comes (T under 0.5 % of its reflectance in red, far less in blue). `thin_geometry off` in Wax shows the half-space dipole.
 //   build/bin/povray-brdf +Iscenes/thin_sheets.pov +W480 +H240 +Oout/thin_sheets.png
 #version 3.7;
 global_settings { assumed_gamma 1.0 mm_per_unit 1 }

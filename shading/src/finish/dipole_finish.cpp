@@ -298,8 +298,9 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     if (!cloud) cloud = &subsurface.cloud(key, sampler);
     const Rgb e = here();
     // the point's own thickness, one ray, only where the object is thinner than the finish's
-    // slab threshold somewhere (thick objects: infinity, no ray)
-    const double thickness = subsurface.wants_thickness(*cloud) ? object.thickness(x, n)
+    // slab threshold somewhere, or could pass light through to here from its other face
+    // (thick objects and lit faces of thick-ish ones: infinity, no ray)
+    const double thickness = subsurface.wants_thickness(*cloud, e) ? object.thickness(x, n)
                                                                 : std::numeric_limits<double>::infinity();
     if (thickness < subsurface.slab_threshold() && subsurface.slab_single_at_lookup())
         single += slab_single_scatter(subsurface, object, x, n, to_eye, thickness);

@@ -571,6 +571,31 @@ bool PointCloud::lit_within(const Vec3& x, double radius) const {
     return false;
 }
 
+bool PointCloud::brighter_within(const Vec3& y, double radius, const Vec3& facing, const Rgb& scale,
+                                 const Rgb& bound) const {
+    if (nodes_.empty()) return false;
+    const double r2 = radius * radius;
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& nd = nodes_[stack[--top]];
+        if (!nd.lit || !(box_distance2(y, nd.lo, nd.hi) <= r2)) continue;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const SurfacePoint& q = points_[i];
+                const Vec3 v = q.p - y;
+                if (!(dot(v, v) <= r2) || !(dot(q.n, facing) > 0)) continue;
+                for (int c = 0; c < 3; ++c)
+                    if (q.irradiance[c] * scale[c] > bound[c]) return true;
+            }
+            continue;
+        }
+        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+    }
+    return false;
+}
+
 CloudStats PointCloud::stats() const {
     CloudStats s;
     s.points = points_.size();

@@ -145,7 +145,13 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
     return out;
 }
 
-double slab_threshold(const Dipole& dipole, double tolerance) {
+namespace {
+
+// The least thickness from which `close(d)` holds (it holds for every thicker slab: the slab's
+// totals approach the half-space's monotonically), by doubling from the smallest channel's z_r
+// and bisection in log d; 0 for a medium without scattering.
+template <class Close>
+double thickness_from(const Dipole& dipole, Close close) {
     double zr = kInf;
     bool any = false;
     for (int c = 0; c < 3; ++c)
@@ -154,17 +160,6 @@ double slab_threshold(const Dipole& dipole, double tolerance) {
             any = true;
         }
     if (!any) return 0.0;
-    auto close = [&](double d) {
-        for (int c = 0; c < 3; ++c) {
-            const DipoleChannel& ch = dipole.channel(c);
-            if (ch.empty) continue;
-            const SlabChannel s = SlabChannel::make(ch, d);
-            const double inf = ch.rd_total();
-            if (!(inf > 0)) continue;
-            if (std::fabs(s.R_total() - inf) + s.T_total() > tolerance * inf) return false;
-        }
-        return true;
-    };
     double hi = zr;
     while (!close(hi)) {
         hi *= 2;
@@ -177,6 +172,34 @@ double slab_threshold(const Dipole& dipole, double tolerance) {
         (close(mid) ? hi : lo) = mid;
     }
     return hi;
+}
+
+}  // namespace
+
+double slab_threshold(const Dipole& dipole, double tolerance) {
+    return thickness_from(dipole, [&](double d) {
+        for (int c = 0; c < 3; ++c) {
+            const DipoleChannel& ch = dipole.channel(c);
+            if (ch.empty) continue;
+            const SlabChannel s = SlabChannel::make(ch, d);
+            const double inf = ch.rd_total();
+            if (!(inf > 0)) continue;
+            if (std::fabs(s.R_total() - inf) + s.T_total() > tolerance * inf) return false;
+        }
+        return true;
+    });
+}
+
+double transmit_threshold(const Dipole& dipole, double fraction) {
+    return thickness_from(dipole, [&](double d) {
+        for (int c = 0; c < 3; ++c) {
+            const DipoleChannel& ch = dipole.channel(c);
+            if (ch.empty) continue;
+            const double inf = ch.rd_total();
+            if (inf > 0 && SlabChannel::make(ch, d).T_total() > fraction * inf) return false;
+        }
+        return true;
+    });
 }
 
 }  // namespace shading

@@ -70,6 +70,10 @@ public:
     // Whether a point with light (E_t > 0 in some channel) lies within `radius` of x: where x
     // is lit and none does, the light at x fell between the samples (Subsurface::radiance).
     bool lit_within(const Vec3& x, double radius) const;
+    // Whether a point within `radius` of y whose normal faces `facing` (n . facing > 0) has
+    // E_t[c] scale[c] > bound[c] in some channel (a face's light that could matter through a
+    // slab: Subsurface::transmits).
+    bool brighter_within(const Vec3& y, double radius, const Vec3& facing, const Rgb& scale, const Rgb& bound) const;
     // The largest E_t of any point in any channel (0: nothing lit).
     double max_irradiance() const { return max_irradiance_; }
     double level_spacing(int level) const { return levels_[level].h; }

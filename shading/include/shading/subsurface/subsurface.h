@@ -181,7 +181,18 @@ public:
     // slab_threshold at 0.5 %; scene units; 0 with thin geometry off), and whether a lookup on
     // this cloud needs its point's thickness (some sample of it is thinner).
     double slab_threshold() const { return slab_threshold_; }
-    bool wants_thickness(const PointCloud& cloud) const { return cloud.thinnest() < slab_threshold_; }
+    // ... and up to which a thicker point may still pass light through to its other face
+    // (transmit_threshold at 1e-4 of R_inf; slab_threshold's or more): a lookup there takes
+    // the slab's profiles where that light could matter (transmits()).
+    double transmit_threshold() const { return transmit_threshold_; }
+    bool wants_thickness(const PointCloud& cloud) const { return cloud.thinnest() < transmit_threshold_; }
+    // ... at a point with transmitted irradiance E_t: a cloud thinner than slab_threshold()
+    // somewhere, or one whose thinnest part could pass light that matters there (transmits():
+    // T is largest at the least thickness, so a lit face of a thick object casts no ray).
+    bool wants_thickness(const PointCloud& cloud, const Rgb& irradiance_here) const {
+        return cloud.thinnest() < slab_threshold_ ||
+               (cloud.thinnest() < transmit_threshold_ && transmits(cloud, cloud.thinnest(), irradiance_here));
+    }
     // The slab profiles used for a point of thickness d < slab_threshold() (d is rounded to one
     // of 32 nodes per octave from 0.01 mean free paths up; built on first use, lock-free after).
     const SlabProfiles& slab(double d) const;
@@ -200,9 +211,20 @@ public:
     // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
     // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R; between
     // the two thickness nodes around it, the same face's part linear in ln d, the opposite
-    // face's geometric in d); at or above it exactly the call above.
+    // face's geometric in d); up to transmit_threshold() the same where transmits(); else
+    // exactly the call above.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here, double thickness) const;
+
+    // At a point between slab_threshold() and transmit_threshold() thick: whether the light
+    // through its far face could exceed kSlabTolerance of its own face's (T_total at its
+    // thickness times the cloud's brightest sample against R_total times its own E_t, in any
+    // channel): a back-lit face, a shadowed one, a dark side.
+    bool transmits(const PointCloud& cloud, double thickness, const Rgb& irradiance_here) const;
+    // ... and at x (normal n): a sample of the far face within half the thickness of x - n d
+    // is that bright (PointCloud::brighter_within).
+    bool transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
+                   const Rgb& irradiance_here) const;
 
 private:
     // The mean of the exit weight w over the near field of spacing h (its share of Rd, (1 -
@@ -228,6 +250,7 @@ private:
     std::shared_ptr<const RdProfile> profile_;
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
+    double transmit_threshold_ = 0;  // >= slab_threshold_
     bool slab_single_ = false;
     bool directional_ = false;  // the profile has entry shifts and settings.directional is on
     Rgb curvature_length_;      // settings.curvature: c(eta, alpha') mfp' per channel, else 0
