@@ -273,6 +273,53 @@ TEST(SlabSubsurface, ThickBackLitSlabTransmitsItsOwnThicknessesLight) {
     }
 }
 
+// Past the slab threshold a slab still passes light to its other face, up to the transmit
+// threshold (T_total below 1e-4 of R_inf in every channel; between 1.1x and 3x the slab
+// threshold for Skin1). Back-lit, the dark face's exitance is the slab's transmittance there,
+// within kThickSlabTransmission (it was the half-space's: none of it); lit on its own face, the
+// lookup is the half-space's, bit for bit (the far face is dark).
+TEST(SlabSubsurface, PastTheSlabThresholdABackLitFaceStillTransmits) {
+    const Medium m = Medium::from_reduced(Rgb(0.74, 0.88, 1.01), Rgb(0.032, 0.17, 0.48), 1.0, 1.0);
+    Subsurface s(m, SubsurfaceSettings{});
+    const double t = s.transmit_threshold();
+    ASSERT_GT(t, 1.1 * s.slab_threshold());
+    ASSERT_LT(t, 3.0 * s.slab_threshold());
+    double worst = 0;
+    for (int c = 0; c < 3; ++c) {
+        const double inf = s.dipole().channel(c).rd_total();
+        worst = std::max(worst, SlabChannel::make(s.dipole().channel(c), t).T_total() / inf);
+        EXPECT_GT(SlabChannel::make(s.dipole().channel(c), t / 1.1).T_total() / inf, c == 0 ? 1e-4 : 0.0);
+    }
+    EXPECT_LE(worst, 1e-4);
+    EXPECT_GT(worst, 0.9e-4);
+    const Vec3 up(0, 0, 1);
+    int key[4];
+    int k = 0;
+    for (double f : {1.1, 1.4}) {
+        const double d = f * s.slab_threshold();
+        for (int back = 0; back < 2; ++back) {
+            SheetSampler sampler(150.0, d, [back](const Vec3&, const Vec3& n) { return Rgb(back ? (n.z < -0.5) : (n.z > 0.5)); });
+            const PointCloud& c = s.cloud(&key[k++], sampler);
+            EXPECT_TRUE(s.wants_thickness(c));
+            const Vec3 top(0.1, -0.05, d);
+            if (!back) {
+                EXPECT_FALSE(s.wants_thickness(c, Rgb(1.0)));  // a lit face casts no ray
+                const Rgb a = s.radiance(c, top, up, up, Rgb(1.0)), b = s.radiance(c, top, up, up, Rgb(1.0), d);
+                for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(a[ch], b[ch]);
+                continue;
+            }
+            EXPECT_TRUE(s.wants_thickness(c, Rgb(0.0)));
+            const Rgb l = s.radiance(c, top, up, up, Rgb(0.0), d);
+            for (int ch = 0; ch < 3; ++ch) {
+                const double want = SlabChannel::make(s.dipole().channel(ch), d).T_total();
+                std::printf("back-lit Skin1 slab %.1f mm (%.1f x the slab threshold), channel %d: M %.4g, slab T %.4g (%+.2f %%)\n",
+                            d, f, ch, l[ch], want, 100 * (l[ch] / want - 1));
+                EXPECT_NEAR(l[ch] / want, 1.0, kThickSlabTransmission) << d << " mm, channel " << ch;
+            }
+        }
+    }
+}
+
 // The two thickness nodes around a point are summed in one traversal of the cloud
 // (PointCloud::SecondProfiles): each node's result as its own traversal gives it, within
 // kPairedTraversal relative (stated before measuring: the shared traversal aggregates no
