@@ -1,5 +1,6 @@
 """Subsurface in real geometry (issue 31): the dipole finish's profile method (at default settings,
-with ``directional on``, shading/DIPOLE.md 6b, not on sheets, where it shifts nothing, and with
+with ``directional on``, shading/DIPOLE.md 6b: on sheets it shifts nothing, but its single
+scattering from upstream must still get the slab's correction, and with
 single scattering traced in the object, ``single_scatter_samples`` :data:`TRACED`, not on the
 edge, a flat face where it is the formula), its random walk and ``method auto`` (which of the two
 it chose, at the walk's samples), rendered by the fork, against the independent volumetric
@@ -242,7 +243,8 @@ def sheet_rows(args, fork) -> list[dict]:
                                    side="reflected" if side > 0 else "transmitted", view=angle,
                                    ref=want.tolist(), ref_seconds=ref_s / len(views),
                                    ref_noise=float(np.max(want_err / np.maximum(want, 1e-30))))
-                        for method, extra in (("profile", ""), ("traced", f" single_scatter_samples {TRACED}"),
+                        for method, extra in (("profile", ""), ("directional", " directional on"),
+                                              ("traced", f" single_scatter_samples {TRACED}"),
                                               ("walk", f" method random_walk samples {args.samples}"),
                                               ("auto", auto_extra(args.samples))):
                             img, sec, chosen = render(SHEET.format(bottom=-d, dipole=medium_text(name, g, eta) + extra,
@@ -441,8 +443,9 @@ def report(row: dict) -> None:
                 f"{row['auto']['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
         head += f" d {row['mfp']:5.2f} mfp {row['side']:11s} view {row['view']:2d}"
-        p, t, w = row["profile"], row["traced"], row["walk"]
-        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | traced single {100 * t['error']:7.2f} % "
+        p, d, t, w = row["profile"], row["directional"], row["traced"], row["walk"]
+        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | directional on {100 * d['error']:7.2f} % "
+                f"{d['seconds']:6.2f} s | traced single {100 * t['error']:7.2f} % "
                 f"{t['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
                 f"{w['seconds']:6.2f} s (per walk {w['per_walk']:.2f}, 1 % noise per pixel in {w['to_1pc']:.3g} CPU s) | auto ({row['auto']['chose']}) {100 * row['auto']['error']:6.2f} % "
                 f"{row['auto']['seconds']:6.2f} s | ref noise {100 * row['ref_noise']:.2f} %")
