@@ -550,29 +550,8 @@ int PointCloud::lookup_level(const Vec3& x) const {
     return i < 0 ? 0 : level_of_[i];
 }
 
-bool PointCloud::lit_within(const Vec3& x, double radius) const {
-    if (nodes_.empty()) return false;
-    const double r2 = radius * radius;
-    int stack[8 * kMaxDepth + 16];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const Node& nd = nodes_[stack[--top]];
-        if (!nd.lit || !(box_distance2(x, nd.lo, nd.hi) <= r2)) continue;
-        if (nd.child < 0) {
-            for (int i = nd.first; i < nd.first + nd.count; ++i) {
-                const Vec3 v = leaves_[i].p - x;
-                if (leaves_[i].flux.max_component() > 0 && dot(v, v) <= r2) return true;
-            }
-            continue;
-        }
-        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
-    }
-    return false;
-}
-
-bool PointCloud::brighter_within(const Vec3& y, double radius, const Vec3& facing, const Rgb& scale,
-                                 const Rgb& bound) const {
+template <class Pred>
+bool PointCloud::any_lit_within(const Vec3& y, double radius, Pred pred) const {
     if (nodes_.empty()) return false;
     const double r2 = radius * radius;
     int stack[8 * kMaxDepth + 16];
@@ -583,17 +562,29 @@ bool PointCloud::brighter_within(const Vec3& y, double radius, const Vec3& facin
         if (!nd.lit || !(box_distance2(y, nd.lo, nd.hi) <= r2)) continue;
         if (nd.child < 0) {
             for (int i = nd.first; i < nd.first + nd.count; ++i) {
-                const SurfacePoint& q = points_[i];
-                const Vec3 v = q.p - y;
-                if (!(dot(v, v) <= r2) || !(dot(q.n, facing) > 0)) continue;
-                for (int c = 0; c < 3; ++c)
-                    if (q.irradiance[c] * scale[c] > bound[c]) return true;
+                const Vec3 v = leaves_[i].p - y;
+                if (dot(v, v) <= r2 && pred(i)) return true;
             }
             continue;
         }
         for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
     }
     return false;
+}
+
+bool PointCloud::lit_within(const Vec3& x, double radius) const {
+    return any_lit_within(x, radius, [&](int i) { return leaves_[i].flux.max_component() > 0; });
+}
+
+bool PointCloud::brighter_within(const Vec3& y, double radius, const Vec3& facing, const Rgb& scale,
+                                 const Rgb& bound) const {
+    return any_lit_within(y, radius, [&](int i) {
+        const SurfacePoint& q = points_[i];
+        if (!(dot(q.n, facing) > 0)) return false;
+        for (int c = 0; c < 3; ++c)
+            if (q.irradiance[c] * scale[c] > bound[c]) return true;
+        return false;
+    });
 }
 
 CloudStats PointCloud::stats() const {

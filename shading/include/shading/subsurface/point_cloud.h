@@ -261,6 +261,9 @@ private:
     std::vector<LeafShift> leaf_shift_;
     std::vector<NodeShift> node_shift_;
     void build_shifts();
+    // Whether pred(i) holds for a point i of a lit node within `radius` of y (the first found).
+    template <class Pred>
+    bool any_lit_within(const Vec3& y, double radius, Pred pred) const;
     template <bool kExact>
     Rgb shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, double r0, double h, double max_angle,
                     double cut2, Rgb* near_irradiance, std::size_t* visited, const RadialWeight* weight) const;
