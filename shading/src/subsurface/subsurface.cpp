@@ -201,7 +201,7 @@ std::shared_ptr<const PointCloud> Subsurface::build(const ParallelFor& parallel,
     r.levels = report.levels;
     r.finest_spacing = cloud->stats().finest_spacing;
     r.unbounded = report.unbounded;
-    r.slab_object = cloud->thinnest() < slab_threshold_;
+    r.slab_object = cloud->thinnest() < transmit_threshold_;  // (where it may take slab lookups)
     r.thin = !r.slab_object && report.thin && !(slab_threshold_ > 0);  // thin geometry off: the old warning
     if (r.slab_object) {
         r.thinnest = cloud->thinnest();
