@@ -147,7 +147,9 @@ public:
     // upstream of x (x less the first two images' offsets of its nearest point's shifts).
     int lookup_level_shifted(const Vec3& x) const;
     // The transmitted irradiance about a point y near the surface: the (1 - w)-weighted mean E_t
-    // of the points inside the window of spacing h about y (0 where none is).
+    // of the points inside the window of spacing h about y; where none is (y off the surface by
+    // more than the window: a line along a curved face's tangent plane), the nearest point's E_t
+    // (0 for an empty cloud).
     Rgb irradiance_about(const Vec3& y, double h) const;
     // The mean curvature H of the surface at x (unit normal nx), from the points within the
     // lookup window of spacing h about x (weights: area times 1 - w): the weighted
