@@ -13,6 +13,7 @@
 
 #include "chandrasekhar_h.h"
 #include "shading/finish/finish.h"
+#include "shading/subsurface/media_presets.h"
 #include "shading/subsurface/radial_profile.h"
 #include "shading/subsurface/ss_profile.h"
 #include "shading/subsurface/subsurface.h"
@@ -446,6 +447,36 @@ std::shared_ptr<const ProfileTables> small_slab_tables() {
 
 std::shared_ptr<const ProfileTables> small_tables_ptr() {
     return std::shared_ptr<const ProfileTables>(std::shared_ptr<const ProfileTables>(), &small_tables());
+}
+
+// The automatic levels stop where the near field (wrong by up to half of it at a shadow edge)
+// holds at most edge_fraction of what each channel shows: Rd plus the single scattering the
+// finish adds (Subsurface::refinement_levels). Ketchup's green and blue (alpha' 0.067, 0.020)
+// are nearly all single scattering; counted by Rd alone they drove its clouds down to
+// spacings no pixel needed.
+TEST(ExactProfile, RefinementLevelsCountTheSingleScatteringThePixelShows) {
+    const Medium ketchup = media_preset("Ketchup");  // mm
+    auto model = std::make_shared<const ExactProfile>(ketchup, small_tables_ptr());
+    SubsurfaceSettings on, off;
+    off.single_scatter = false;
+    const Subsurface with(ketchup, on, FdrModel::JensenFit, model), without(ketchup, off, FdrModel::JensenFit, model);
+    const double h0 = with.sample_spacing(40.0);
+    const int k_with = with.refinement_levels(h0), k_without = without.refinement_levels(h0);
+    const Rgb total = with.profile().total(), shown = total + with.single_scatter_shown();
+    auto fits = [&](int k, const Rgb& of) {
+        const Rgb near = with.profile().near_reflectance(std::ldexp(h0, -k));
+        for (int c = 0; c < 3; ++c)
+            if (near[c] > on.edge_fraction * of[c]) return false;
+        return true;
+    };
+    // Each rule stops at the first level that meets it.
+    EXPECT_TRUE(fits(k_with, shown));
+    EXPECT_TRUE(k_with == 0 || !fits(k_with - 1, shown));
+    EXPECT_TRUE(fits(k_without, total));
+    EXPECT_TRUE(k_without == 0 || !fits(k_without - 1, total));
+    // Blue's single scattering is ~100x its Rd: red (alpha' 0.75) decides now, levels sooner.
+    EXPECT_GT(with.single_scatter_shown()[2], 30 * total[2]);
+    EXPECT_LE(k_with + 3, k_without) << k_with << " " << k_without;
 }
 
 }  // namespace

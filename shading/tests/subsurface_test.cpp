@@ -513,6 +513,25 @@ TEST(SubsurfaceSampling, RefinesAtAShadowEdgeAndNowhereElse) {
     EXPECT_DOUBLE_EQ(c.level_spacing(c.lookup_level(Vec3(12, 3, 0))), h0);
 }
 
+// The single scattering a pixel shows beside Rd, which the automatic refinement levels count.
+TEST(SubsurfaceSampling, SingleScatteringShownIsTheHalfSpaceAlbedo) {
+    // Index-matched, isotropic: the normal-incidence single-scattering albedo is
+    // alpha (1 - ln 2) / 2 (Chandrasekhar; DIPOLE.md 5), per unit irradiance entering.
+    {
+        const Medium m = Medium::from_reduced(Rgb(0.5, 1.0, 2.0), Rgb(0.5, 0.1, 0.02), 1.0);
+        const Subsurface s(m, SubsurfaceSettings{});
+        const Rgb ss = s.single_scatter_shown();
+        for (int c = 0; c < 3; ++c) {
+            const double alpha = m.sigma_s[c] / (m.sigma_s[c] + m.sigma_a[c]);
+            EXPECT_NEAR(ss[c], alpha * (1 - std::log(2.0)) / 2, 1e-4 * alpha) << c;
+        }
+        SubsurfaceSettings off;
+        off.single_scatter = false;
+        EXPECT_EQ(Subsurface(m, off).single_scatter_shown().max_component(), 0.0);
+    }
+    // Ketchup's levels with the exact profile: ss_profile_test.cpp.
+}
+
 namespace {
 // Largest error of M across a sharp shadow edge against the half-plane integral of Rd, as a
 // fraction of the lit level (marble, mm, a 120 x 120 x 30 mm slab: base spacing 0.6 mm).

@@ -70,8 +70,9 @@ struct SubsurfaceSettings {
     bool single_scatter = true;
     int max_lines = 200;       // automatic spacing: at most this many sample lines per bbox axis
     // Refinement (sample_surface): levels below the base spacing, each halving it; -1:
-    // automatic (down to the spacing whose near field holds at most edge_fraction of Rd in
-    // every channel: a lookup right at a sharp shadow edge is then off by about half of that).
+    // automatic (down to the spacing whose near field holds at most edge_fraction of what
+    // every channel reflects, Rd plus the single scattering the finish adds: a lookup right at
+    // a sharp shadow edge is then off by about half of that).
     int max_levels = -1;
     double edge_fraction = 0.05;
     double tolerance = 0.02;   // refine where E_t departs from linear by this part of its maximum
@@ -164,6 +165,10 @@ public:
     double sample_spacing(double extent) const;
     // Refinement levels below base spacing h0 (settings: max_levels, edge_fraction).
     int refinement_levels(double h0) const;
+    // Per channel, the single scattering this finish adds to a pixel (the BRDF, or at each
+    // lookup), per unit irradiance entering at normal incidence, hemispherical; 0 where it
+    // adds none (single scattering off, or traced in the object's shape).
+    Rgb single_scatter_shown() const;
     // Rd is negligible (below 1e-6 of its integral) beyond this distance: the profile's r_max.
     double cutoff() const { return profile_->r_max(); }
     // Smallest mean free path 1/sigma_t' over the channels (scene units; the model's): geometry
