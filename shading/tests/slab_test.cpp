@@ -414,3 +414,53 @@ TEST(SlabSubsurface, ThickObjectsAndThinGeometryOffAreUnchanged) {
     EXPECT_EQ(sampler2.thickness_calls, 0);
     EXPECT_FALSE(s2.wants_thickness(c2));
 }
+
+// A slab's profiles are made per thickness node in every render (SlabCache), and each call of
+// the multipole's image sums costs thousands of instructions: its T (and R) tables call it at
+// every 4th node only, the nodes between from the quintic Hermite of those
+// (RdProfile sample_every), the disc integrals on the table. Against the table made by calling
+// it at every node, over media, indices and thicknesses from 0.01 to 16 mfp': values
+// wherever they exceed 1e-9 of the peak, slopes, discs and totals.
+TEST(SlabProfile, TablesSampledAtEveryFourthNodeAreTheFullTables) {
+    // Errors as shares of the face's total: a value's per unit of ln r (2 pi r max(r, scale)
+    // |df|, what a far sum over a surface weights it by), a slope's the same times
+    // max(r, scale), a disc integral's as it is.
+    double worst_f = 0, worst_d1 = 0, worst_disc = 0;
+    long calls[2] = {0, 0};
+    for (double ap : {0.02, 0.3, 0.9, 0.99, 1.0})
+        for (double eta : {1.0, 1.3})
+            for (double d : {0.01, 0.25, 1.0, 4.0, 16.0}) {
+                const Dipole dip(unit_medium(ap, eta));
+                const SlabChannel ch = SlabChannel::make(dip.channel(0), d);
+                for (bool opposite : {false, true}) {
+                    long* count = &calls[0];
+                    auto fn = [&](double r) {
+                        ++*count;
+                        return Rgb(opposite ? ch.T(r) : ch.R(r));
+                    };
+                    const double scale = std::min(ch.z0, ch.cutoff);
+                    const RdProfile full(fn, RdProfile::Fn(), scale, ch.cutoff);
+                    count = &calls[1];
+                    const RdProfile sparse(fn, RdProfile::Fn(), scale, ch.cutoff, 4);
+                    count = &calls[0];  // (the evaluations below read the tables only)
+                    const double total = full.total().r;
+                    if (!(total > 0)) continue;
+                    for (int i = 0; i < 4000; ++i) {
+                        const double r = ch.cutoff * std::pow((i + 0.37) / 4000.0, 3.0), w = 2 * kPi * r * std::max(r, scale);
+                        Rgb f0, a0, b0, f1, a1, b1;
+                        full.eval(r, &f0, &a0, &b0);
+                        sparse.eval(r, &f1, &a1, &b1);
+                        worst_f = std::max(worst_f, w * std::fabs(f1.r - f0.r) / total);
+                        worst_d1 = std::max(worst_d1, w * std::max(r, scale) * std::fabs(a1.r - a0.r) / total);
+                    }
+                    for (double R : {0.1 * scale, scale, 3 * scale, 0.3 * ch.cutoff, ch.cutoff})
+                        worst_disc = std::max(worst_disc, std::fabs(sparse.disc(R).r - full.disc(R).r) / total);
+                }
+            }
+    std::printf("every 4th node: values %.2e, slopes %.2e, discs %.2e of the total; %ld calls against %ld\n", worst_f,
+                worst_d1, worst_disc, calls[1], calls[0]);
+    EXPECT_LT(worst_f, 1e-6);
+    EXPECT_LT(worst_d1, 1e-4);  // (the full table's own slopes: within 1e-3 of the function's, TableMatchesTheAnalyticProfile)
+    EXPECT_LT(worst_disc, 1e-6);
+    EXPECT_LT(calls[1] * 4, calls[0]);
+}

@@ -295,7 +295,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         };
     }
     out.same = std::make_shared<const RdProfile>(same, same_disc, scale, cutoff);
-    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
+    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff, kSlabSampleEvery);
     // Each face's own exit distribution where the tables hold it (the transmitted light of a
     // thin slab leaves more obliquely: pi L / M at normal 0.85 at 0.25 mfp against the
     // half-space's 1.02; the harness Monte Carlo's transmitted radiance agrees, DIPOLE.md 6a).

@@ -16,6 +16,10 @@ namespace {
 constexpr int kSubBits = 6;
 constexpr int kPerOctave = 1 << kSubBits;
 constexpr int kMaxOctaves = 1000;  // s < 2^1000: far inside the double range
+// sample_every > 1: an interval whose quintic misses its middle node by more than this part of
+// the node's value (plus 1 % of the peak's times (scale / r)^2, about what a far tail's share of
+// the total would make of it: rounding in a far tail does not count) is sampled whole.
+constexpr double kSparseTolerance = 1e-7;
 
 // The node interval i of r >= 0 and r's place u in [0, 1) within it: with s = 1 + r / scale
 // >= 1, the octave and the node inside it are the exponent and the top kSubBits mantissa bits
@@ -30,11 +34,13 @@ inline void locate(double r, double inv_scale, std::size_t* i, double* u) {
 
 }  // namespace
 
-RdProfile::RdProfile(Fn rd, Fn disc, double scale, double r_max)
+RdProfile::RdProfile(Fn rd, Fn disc, double scale, double r_max, int sample_every)
     : rd_(std::move(rd)), disc_(std::move(disc)), scale_(scale), r_max_(r_max) {
     if (!rd_) throw std::invalid_argument("RdProfile: no profile");
     if (!(scale > 0) || !std::isfinite(scale) || !(r_max > 0) || !std::isfinite(r_max))
         throw std::invalid_argument("RdProfile: scale and r_max must be finite and > 0");
+    if (!(sample_every >= 1 && sample_every <= 16 && (sample_every & (sample_every - 1)) == 0))
+        throw std::invalid_argument("RdProfile: sample_every must be 1, 2, 4, 8 or 16");
     inv_scale_ = 1.0 / scale;
     const double smax = 1.0 + r_max / scale;
     const int octaves = std::max(1, int(std::ceil(std::log2(smax))));
@@ -42,15 +48,13 @@ RdProfile::RdProfile(Fn rd, Fn disc, double scale, double r_max)
     const int n = octaves * kPerOctave;
     nodes_.resize(n + 1);
     node_r_.resize(n + 1);
-    for (int i = 0; i <= n; ++i) {
-        const double s = std::ldexp(1.0 + double(i % kPerOctave) / kPerOctave, i / kPerOctave);
-        const double r = scale * (s - 1.0);
-        node_r_[i] = r;
-        // Derivatives by central differences, step 1e-3 of the local scale r + scale (about a
-        // tenth of the node interval); below r = e the even extension of Rd (a function of
-        // |r|) supplies the point at r - e.
-        // The third derivative (for the Hermite interpolation of f'') takes a 10x larger step:
-        // its rounding error grows as 1/e^3.
+    // A node from the profile itself: its value and its derivatives by central differences,
+    // step 1e-3 of the local scale r + scale (about a tenth of the node interval); below r = e
+    // the even extension of Rd (a function of |r|) supplies the point at r - e. The third
+    // derivative (for the Hermite interpolation of f'') takes a 10x larger step: its rounding
+    // error grows as 1/e^3.
+    auto sample = [&](int i) {
+        const double r = node_r_[i];
         const double e = 1e-3 * (r + scale), e3 = 1e-2 * (r + scale);
         const Rgb f0 = rd_(r), fp = rd_(r + e), fm = rd_(std::fabs(r - e));
         const Rgb gp = rd_(r + e3), gm = rd_(std::fabs(r - e3)), gpp = rd_(r + 2 * e3), gmm = rd_(std::fabs(r - 2 * e3));
@@ -60,6 +64,49 @@ RdProfile::RdProfile(Fn rd, Fn disc, double scale, double r_max)
             nd.d1[k] = (fp[k] - fm[k]) / (2 * e);
             nd.d2[k] = (fp[k] - 2 * f0[k] + fm[k]) / (e * e);
             nd.d3[k] = (gpp[k] - 2 * gp[k] + 2 * gm[k] - gmm[k]) / (2 * e3 * e3 * e3);
+        }
+    };
+    for (int i = 0; i <= n; ++i) {
+        node_r_[i] = scale * (std::ldexp(1.0 + double(i % kPerOctave) / kPerOctave, i / kPerOctave) - 1.0);
+        if (i % sample_every == 0) sample(i);  // the others filled below from the sampled nodes around them
+    }
+    if (sample_every > 1) {
+        // The nodes between sampled ones: the quintic Hermite through the two sampled nodes
+        // around them (their f, f', f''), in t = (r - r_a) / H over [r_a, r_b]: p(t) = sum
+        // c_j t^j with c0 = f_a, c1 = H f'_a, c2 = H^2 f''_a / 2 and c3..c5 matching f_b, H f'_b,
+        // H^2 f''_b. Sampled nodes are kPerOctave / 2^k apart inside one octave, where the
+        // nodes are evenly spaced in r. Where the profile is not smooth on that scale (it drops
+        // to 0 at r_max, where the differences above straddle the drop), the quintic misses its
+        // middle node: checked there by one more call, and such an interval is sampled whole.
+        integrate_table_ = !disc_;
+        double peak = 0;
+        for (int a = 0; a <= n; a += sample_every)
+            for (int k = 0; k < 3; ++k) peak = std::max(peak, std::fabs(nodes_[a].f[k]));
+        for (int a = 0; a < n; a += sample_every) {
+            const int b = a + sample_every, mid = a + sample_every / 2;
+            const double H = node_r_[b] - node_r_[a];
+            for (int k = 0; k < 3; ++k) {
+                const double f0 = nodes_[a].f[k], f1 = nodes_[b].f[k], g0 = H * nodes_[a].d1[k], g1 = H * nodes_[b].d1[k],
+                             h0 = H * H * nodes_[a].d2[k], h1 = H * H * nodes_[b].d2[k], df = f1 - f0;
+                const double c[6] = {f0, g0, 0.5 * h0, 10 * df - 6 * g0 - 4 * g1 - 1.5 * h0 + 0.5 * h1,
+                                     -15 * df + 8 * g0 + 7 * g1 + 1.5 * h0 - h1, 6 * df - 3 * g0 - 3 * g1 - 0.5 * h0 + 0.5 * h1};
+                for (int i = a + 1; i < b; ++i) {
+                    const double t = (node_r_[i] - node_r_[a]) / H;
+                    Node& nd = nodes_[i];
+                    nd.f[k] = c[0] + t * (c[1] + t * (c[2] + t * (c[3] + t * (c[4] + t * c[5]))));
+                    nd.d1[k] = (c[1] + t * (2 * c[2] + t * (3 * c[3] + t * (4 * c[4] + t * 5 * c[5])))) / H;
+                    nd.d2[k] = (2 * c[2] + t * (6 * c[3] + t * (12 * c[4] + t * 20 * c[5]))) / (H * H);
+                    nd.d3[k] = (6 * c[3] + t * (24 * c[4] + t * 60 * c[5])) / (H * H * H);
+                }
+            }
+            const Rgb direct = rd_(node_r_[mid]);
+            const double q = scale / std::max(scale, node_r_[mid]), floor = 0.01 * peak * q * q;
+            bool smooth = true;
+            for (int k = 0; k < 3; ++k)
+                if (!(std::fabs(nodes_[mid].f[k] - direct[k]) <= kSparseTolerance * (std::fabs(direct[k]) + floor)))
+                    smooth = false;
+            if (!smooth)
+                for (int i = a + 1; i < b; ++i) sample(i);
         }
     }
     if (!disc_) {
@@ -228,7 +275,9 @@ Rgb RdProfile::interval_integral(double a, double b) const {
     Rgb sum;
     for (int g = 0; g < 4; ++g) {
         const double r = c + w * kGaussLegendre4X[g];
-        sum += rd_(r) * (kGaussLegendre4W[g] * w * 2 * kPi * r);
+        // The table is cubic in r inside a node interval: 4 points integrate r f exactly.
+        const Rgb f = integrate_table_ ? Rgb(hermite(r).f(0), hermite(r).f(1), hermite(r).f(2)) : rd_(r);
+        sum += f * (kGaussLegendre4W[g] * w * 2 * kPi * r);
     }
     return sum;
 }

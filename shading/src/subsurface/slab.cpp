@@ -139,9 +139,10 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& k) {
     auto same = [ch, k](double r) { return Rgb(k[0] * ch[0].R(r), k[1] * ch[1].R(r), k[2] * ch[2].R(r)); };
     auto transmit = [ch](double rho) { return Rgb(ch[0].T(rho), ch[1].T(rho), ch[2].T(rho)); };
     // The disc integrals numerically (RdProfile's Gauss-Legendre on its nodes): the closed-form
-    // totals above are the independent check (SlabProfile tests).
-    out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff);
-    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff);
+    // totals above are the independent check (SlabProfile tests). The image sums are called
+    // at every 4th node only (kSlabSampleEvery).
+    out.same = std::make_shared<const RdProfile>(same, RdProfile::Fn(), scale, cutoff, kSlabSampleEvery);
+    out.transmit = std::make_shared<const RdProfile>(transmit, RdProfile::Fn(), scale, cutoff, kSlabSampleEvery);
     return out;
 }
 

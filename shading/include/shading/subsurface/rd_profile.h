@@ -40,7 +40,14 @@ public:
     // from rd (4-point Gauss-Legendre on each node interval, summed once). scale > 0: the
     // length of the profile's peak (the smallest mean free path 1/sigma_t'); r_max > 0: where
     // rd may be taken as 0. Throws std::invalid_argument for a bad range.
-    RdProfile(Fn rd, Fn disc, double scale, double r_max);
+    // sample_every (1, 2, 4, 8, 16): rd is called only at every that many nodes (each with
+    // its derivatives); the nodes between take the values and derivatives of the quintic
+    // Hermite through those (f, f', f'' at both ends), and a profile without `disc` is
+    // integrated on its own table (the interpolant, exactly), not by calling rd. For a
+    // profile that is smooth on the scale of that many nodes and costly to call (the
+    // multipole's image sums of a slab, made per thickness node in every render): the same
+    // table to about 1e-9 of its peak for a fraction of the calls (SubsurfaceRdProfile tests).
+    RdProfile(Fn rd, Fn disc, double scale, double r_max, int sample_every = 1);
     // A tabulated profile: radii 0 = r[0] < r[1] < ... and rd per channel at each (>= 0),
     // interpolated monotonically (Fritsch-Carlson cubic in log rd; linear where rd is 0),
     // 0 beyond the last radius. Throws std::invalid_argument on unsorted or bad input.
@@ -91,6 +98,7 @@ private:
     double scale_ = 1, inv_scale_ = 1, r_max_ = 1;
     Rgb total_;
     Rgb interval_integral(double a, double b) const;
+    bool integrate_table_ = false;  // interval_integral of the table, not of rd_ (sample_every > 1)
     std::vector<Node> nodes_;
     std::vector<double> node_r_;
     std::vector<Rgb> cumulative_;  // without a disc callable: the integral up to each node
