@@ -84,7 +84,8 @@ struct SubsurfaceSettings {
     // at a slant leaves about an entry shifted along its refracted beam, and single scattering
     // is lit from upstream (shading/DIPOLE.md 6b): the constructor then moves single_scatter to
     // auto_single_scatter (at each lookup, not in the BRDF), as the finish does for `auto`.
-    // Off by default: at creases and concave seams the result still depends on the sampling.
+    // Off by default: on small curved objects it moves light toward the terminator and the
+    // image loses flux against exact transport (shading/DIPOLE.md 6b).
     bool directional = false;
     // The exact profile's first-order correction for the surface's mean curvature
     // (curvature.h; shading/DIPOLE.md 6d): off here, on by default in the finish with the
