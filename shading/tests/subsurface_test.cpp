@@ -517,18 +517,22 @@ TEST(SubsurfaceSampling, RefinesAtAShadowEdgeAndNowhereElse) {
 TEST(SubsurfaceSampling, SingleScatteringShownIsTheHalfSpaceAlbedo) {
     // Index-matched, isotropic: the normal-incidence single-scattering albedo is
     // alpha (1 - ln 2) / 2 (Chandrasekhar; DIPOLE.md 5), per unit irradiance entering.
-    {
-        const Medium m = Medium::from_reduced(Rgb(0.5, 1.0, 2.0), Rgb(0.5, 0.1, 0.02), 1.0);
-        const Subsurface s(m, SubsurfaceSettings{});
-        const Rgb ss = s.single_scatter_shown();
-        for (int c = 0; c < 3; ++c) {
-            const double alpha = m.sigma_s[c] / (m.sigma_s[c] + m.sigma_a[c]);
-            EXPECT_NEAR(ss[c], alpha * (1 - std::log(2.0)) / 2, 1e-4 * alpha) << c;
-        }
-        SubsurfaceSettings off;
-        off.single_scatter = false;
-        EXPECT_EQ(Subsurface(m, off).single_scatter_shown().max_component(), 0.0);
+    const Medium m = Medium::from_reduced(Rgb(0.5, 1.0, 2.0), Rgb(0.5, 0.1, 0.02), 1.0);
+    const Subsurface s(m, SubsurfaceSettings{});
+    const Rgb ss = s.single_scatter_shown();
+    for (int c = 0; c < 3; ++c) {
+        const double alpha = m.sigma_s[c] / (m.sigma_s[c] + m.sigma_a[c]);
+        EXPECT_NEAR(ss[c], alpha * (1 - std::log(2.0)) / 2, 1e-4 * alpha) << c;
     }
+    // Traced in the object's shape (added at each lookup) it is shown too; off, nothing.
+    SubsurfaceSettings traced, off, traced_off;
+    traced.single_scatter_points = 4;
+    off.single_scatter = false;
+    traced_off.single_scatter_points = 4;
+    traced_off.single_scatter = false;
+    EXPECT_EQ(Subsurface(m, traced).single_scatter_shown().r, ss.r);
+    EXPECT_EQ(Subsurface(m, off).single_scatter_shown().max_component(), 0.0);
+    EXPECT_EQ(Subsurface(m, traced_off).single_scatter_shown().max_component(), 0.0);
     // Ketchup's levels with the exact profile: ss_profile_test.cpp.
 }
 

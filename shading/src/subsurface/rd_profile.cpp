@@ -276,7 +276,13 @@ Rgb RdProfile::interval_integral(double a, double b) const {
     for (int g = 0; g < 4; ++g) {
         const double r = c + w * kGaussLegendre4X[g];
         // The table is cubic in r inside a node interval: 4 points integrate r f exactly.
-        const Rgb f = integrate_table_ ? Rgb(hermite(r).f(0), hermite(r).f(1), hermite(r).f(2)) : rd_(r);
+        Rgb f;
+        if (integrate_table_) {
+            const Hermite h = hermite(r);
+            f = Rgb(h.f(0), h.f(1), h.f(2));
+        } else {
+            f = rd_(r);
+        }
         sum += f * (kGaussLegendre4W[g] * w * 2 * kPi * r);
     }
     return sum;

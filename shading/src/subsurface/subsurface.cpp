@@ -122,9 +122,11 @@ double Subsurface::sample_spacing(double extent) const {
 }
 
 Rgb Subsurface::single_scatter_shown() const {
-    const bool at_lookup = settings_.method != SubsurfaceSettings::Method::Profile || directional_;
-    if (traced_single_scatter() || !(settings_.single_scatter || (at_lookup && settings_.auto_single_scatter)))
-        return Rgb(0.0);
+    // At each lookup (method auto, directional, traced: auto_single_scatter holds the user's
+    // switch, the constructor moved it there) or by the BRDF (single_scatter).
+    const bool at_lookup =
+        settings_.method != SubsurfaceSettings::Method::Profile || directional_ || settings_.single_scatter_points > 0;
+    if (!(at_lookup ? settings_.auto_single_scatter : settings_.single_scatter)) return Rgb(0.0);
     // Lit straight on: 2 pi integral of f_ss(mu) mu dmu over the outside cosine, 4 panels of
     // 8-point Gauss-Legendre (f_ss is smooth in mu but for Fresnel's fall at grazing).
     const Vec3 wi(0.0, 0.0, 1.0);

@@ -45,8 +45,10 @@ public:
     // Hermite through those (f, f', f'' at both ends), and a profile without `disc` is
     // integrated on its own table (the interpolant, exactly), not by calling rd. For a
     // profile that is smooth on the scale of that many nodes and costly to call (the
-    // multipole's image sums of a slab, made per thickness node in every render): the same
-    // table to about 1e-9 of its peak for a fraction of the calls (SubsurfaceRdProfile tests).
+    // multipole's image sums of a slab, made per thickness node in every render). One more
+    // call at each sampled interval's middle node checks the quintic there; an interval it
+    // misses (the drop to 0 at r_max) is sampled whole. At 4 (slab.h kSlabSampleEvery): the
+    // full table to 1.3e-7 of its total per unit of ln r, 5x fewer calls (SlabProfile tests).
     RdProfile(Fn rd, Fn disc, double scale, double r_max, int sample_every = 1);
     // A tabulated profile: radii 0 = r[0] < r[1] < ... and rd per channel at each (>= 0),
     // interpolated monotonically (Fritsch-Carlson cubic in log rd; linear where rd is 0),

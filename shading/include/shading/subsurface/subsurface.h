@@ -166,9 +166,9 @@ public:
     double sample_spacing(double extent) const;
     // Refinement levels below base spacing h0 (settings: max_levels, edge_fraction).
     int refinement_levels(double h0) const;
-    // Per channel, the single scattering this finish adds to a pixel (the BRDF, or at each
-    // lookup), per unit irradiance entering at normal incidence, hemispherical; 0 where it
-    // adds none (single scattering off, or traced in the object's shape).
+    // Per channel, the single scattering this finish adds to a pixel (by the BRDF, or at each
+    // lookup), as the half-space's: per unit irradiance entering at normal incidence,
+    // hemispherical; 0 with single scattering off.
     Rgb single_scatter_shown() const;
     // Rd is negligible (below 1e-6 of its integral) beyond this distance: the profile's r_max.
     double cutoff() const { return profile_->r_max(); }
