@@ -171,6 +171,55 @@ TEST(SubsurfaceDirectional, UniformlyLitPlaneWithShiftsGivesTheTotalEverywhere) 
     std::printf("uniformly lit plane, shifted: worst %.5f of Rd_total\n", worst_uniform);
 }
 
+// The shift field's divergence about a point (PointCloud::shift_divergence_about): the trace of
+// the linear field's gradient across the tangent plane, per channel; exact for a linear field.
+// Unlit points (no shift) stay out of the fit: a half-lit plane reads its lit half's field.
+TEST(SubsurfaceDirectional, ShiftDivergenceIsTheTraceOfTheFieldsGradient) {
+    const double h = 0.1;
+    auto field = [](const Vec3& p, int k) {
+        if (k == 0) return Vec3(0.05 * p.x + 0.3, 0.05 * p.y, 0);                        // radial: div 0.1
+        if (k == 1) return Vec3(-0.04 * p.y + 0.2, 0.04 * p.x, 0);                       // rotation: div 0
+        return Vec3(0.02 * p.x + 0.03 * p.y + 0.1, -0.05 * p.y + 0.01 * p.x + 0.1, 0);  // div -0.03
+    };
+    const double expect[3] = {0.1, 0.0, -0.03};
+    const PointCloud lit(with_shift(plane(6.0, h, [](double, double) { return Rgb(1.0); }), field), h, Rgb(0.1));
+    // the left half in shadow: those points have neither light nor shift
+    auto half = with_shift(plane(6.0, h, [](double x, double) { return Rgb(x > 0 ? 1.0 : 0.0); }), field);
+    for (SurfacePoint& p : half)
+        if (!(p.p.x > 0))
+            for (Vec3& v : p.shift) v = Vec3(0, 0, 0);
+    const PointCloud half_lit(half, h, Rgb(0.1));
+    for (Vec3 x : {Vec3(0, 0, 0), Vec3(1.23, -0.7, 0), Vec3(-2.0, 2.5, 0)}) {
+        const Rgb d = lit.shift_divergence_about(x, Vec3(0, 0, 1), h);
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(d[k], expect[k], 1e-9) << k;
+    }
+    // next to the shadow's edge, on the lit side
+    const Rgb d = half_lit.shift_divergence_about(Vec3(0.12, 0.3, 0), Vec3(0, 0, 1), h);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(d[k], expect[k], 1e-9) << k;
+}
+
+// Images moved along a diverging shift field thin out: on a uniformly lit plane with shifts
+// s = 0.05 (p - x), M falls by (1 + 0.05)^-2, 9 %. A sphere under one parallel light has such a
+// field (every shift pointing away from where the light falls straight); the lookup undoes it
+// (Subsurface::radiance), so that the plane reads its total as with no shifts.
+TEST(SubsurfaceDirectional, DivergingShiftsDoNotThinOutTheLight) {
+    Subsurface s(marble(), SubsurfaceSettings{});
+    const double h = 0.2;
+    auto uniform = [](const Vec3&, int) { return Vec3(0.3, 0.1, 0); };
+    auto diverging = [](const Vec3& p, int) { return Vec3(0.05 * p.x, 0.05 * p.y, 0); };
+    const PointCloud a(with_shift(plane(40.0, h, [](double, double) { return Rgb(1.0); }), uniform), h, s.near_reflectance(h));
+    const PointCloud b(with_shift(plane(40.0, h, [](double, double) { return Rgb(1.0); }), diverging), h, s.near_reflectance(h));
+    const Vec3 x(0.03, -0.05, 0), n(0, 0, 1), eye = normalize(Vec3(0.3, 0, 1));
+    const Rgb ma = s.radiance(a, x, n, eye, Rgb(1.0)), mb = s.radiance(b, x, n, eye, Rgb(1.0));
+    const Rgb images = shifted_exitance(s, b, x, false);
+    for (int k = 0; k < 3; ++k) {
+        EXPECT_NEAR(mb[k] / ma[k], 1.0, kDirectionalUniformTol * 2) << k;
+        // (what the images alone give: thinned by the divergence)
+        EXPECT_LT(images[k], 0.95 * s.profile().total()[k]) << k;
+    }
+    std::printf("diverging shifts (div 0.1): M / M(uniform shifts) %.4f %.4f %.4f\n", mb[0] / ma[0], mb[1] / ma[1], mb[2] / ma[2]);
+}
+
 TEST(SubsurfaceDirectional, HalfLitPlaneFollowsTheSmearedEdgeIntegral) {
     // A sharp shadow edge at x = 0, the light's beams travelling toward +x inside with a mean exit
     // shift delta per channel: each entry's light leaves about x' + t delta, t exponentially

@@ -521,4 +521,55 @@ double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h)
     return den > 0 ? num / den : 0.0;
 }
 
+namespace {
+constexpr double kDivergenceFaceCos = 0.866;  // cos 30 degrees
+}  // namespace
+
+Rgb PointCloud::shift_divergence_about(const Vec3& x, const Vec3& nx, double h) const {
+    if (leaf_shift_.empty()) return Rgb(0.0);
+    // a tangent basis at x
+    const Vec3 e1 = normalize(std::fabs(nx.x) < 0.9 ? cross(nx, Vec3(1, 0, 0)) : cross(nx, Vec3(0, 1, 0)));
+    const Vec3 e2 = cross(nx, e1);
+    // per channel the weighted sums of 1, d (2), s (2), d d^T (3) and s d^T (4), d = p_i - x and
+    // s the shift, both across x's tangent plane
+    double sums[3][12] = {};
+    int count[3] = {0, 0, 0};
+    for_each_in_window(x, h, [&](int i, const Vec3& v, double, double w) {
+        // the face x lies on: a sheet's other face, or an edge's or a crease's other side
+        // (normals more than 30 degrees apart: their shifts lie in other planes), stays out
+        if (!(dot(points_[i].n, nx) > kDivergenceFaceCos)) return;
+        const double a = points_[i].area * w, u1 = -dot(v, e1), u2 = -dot(v, e2);
+        for (int c = 0; c < 3; ++c) {
+            // the shift as the light gave it, not faded at creases (build_shifts): the fade's own
+            // fall to 0 toward a crease is no divergence of the light's field (it drew +-30 %
+            // lines along the CSG difference's inner edges). Unlit points, and the light's edge
+            // cells whose centre the light misses (lit by their sub-lines' mean, shift 0), are
+            // not part of the field.
+            const Vec3& sv = points_[i].shift[c];
+            if (!(leaves_[i].flux[c] > 0) || dot(sv, sv) == 0) continue;
+            const double t1 = dot(sv, e1), t2 = dot(sv, e2);
+            double* S = sums[c];
+            S[0] += a, S[1] += a * u1, S[2] += a * u2, S[3] += a * t1, S[4] += a * t2;
+            S[5] += a * u1 * u1, S[6] += a * u1 * u2, S[7] += a * u2 * u2;
+            S[8] += a * t1 * u1, S[9] += a * t1 * u2, S[10] += a * t2 * u1, S[11] += a * t2 * u2;
+            ++count[c];
+        }
+    });
+    Rgb out;
+    for (int c = 0; c < 3; ++c) {
+        const double* S = sums[c];
+        const double W = S[0];
+        if (count[c] < 6 || !(W > 0)) continue;
+        // centred: C = sum a (d - dbar)(d - dbar)^T, B = sum a (s - sbar)(d - dbar)^T; J = B C^-1
+        const double m1 = S[1] / W, m2 = S[2] / W, n1 = S[3] / W, n2 = S[4] / W;
+        const double C11 = S[5] - W * m1 * m1, C12 = S[6] - W * m1 * m2, C22 = S[7] - W * m2 * m2;
+        const double B11 = S[8] - W * n1 * m1, B12 = S[9] - W * n1 * m2, B21 = S[10] - W * n2 * m1, B22 = S[11] - W * n2 * m2;
+        const double det = C11 * C22 - C12 * C12;
+        if (!(det > 1e-6 * (C11 + C22) * (C11 + C22))) continue;  // points along a line: no 2-D fit
+        // tr(B C^-1), C^-1 = [C22 -C12; -C12 C11] / det
+        out[c] = (B11 * C22 - (B12 + B21) * C12 + B22 * C11) / det;
+    }
+    return out;
+}
+
 }  // namespace shading

@@ -158,6 +158,11 @@ public:
     // plane; points whose normal faces away from nx (n_i.nx <= 0: a sheet's other face) are
     // left out; 0 where no other point is.
     double mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const;
+    // Directional clouds: per channel the divergence of the lit points' shift field about x
+    // (across x's tangent plane, the window of spacing h, each point by its area: a weighted
+    // least-squares linear fit s = s0 + J d, div = tr J; unlit points, whose shift is 0, stay
+    // out); 0 where fewer than 6 lit points or no fit.
+    Rgb shift_divergence_about(const Vec3& x, const Vec3& nx, double h) const;
     static constexpr int kSmearNodes = 3;
     static const double kSmearT[kSmearNodes];
     static const double kSmearW[kSmearNodes];

@@ -84,8 +84,7 @@ struct SubsurfaceSettings {
     // at a slant leaves about an entry shifted along its refracted beam, and single scattering
     // is lit from upstream (shading/DIPOLE.md 6b): the constructor then moves single_scatter to
     // auto_single_scatter (at each lookup, not in the BRDF), as the finish does for `auto`.
-    // Off by default: on small curved objects it moves light toward the terminator and the
-    // image loses flux against exact transport (shading/DIPOLE.md 6b).
+    // Off by default: lookups of slanted-lit objects cost up to ~5x (shading/DIPOLE.md 6b).
     bool directional = false;
     // The exact profile's first-order correction for the surface's mean curvature
     // (curvature.h; shading/DIPOLE.md 6d): off here, on by default in the finish with the
@@ -264,6 +263,9 @@ private:
     // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window
     // of its base spacing, or of x's lookup level `level` where that is coarser).
     Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const;
+    // The window (spacing) over which the curvature and the shift field's divergence are read
+    // about a point of lookup level `level`: the base spacing's, whatever the level.
+    static double curvature_window(const PointCloud& cloud, int level);
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
     mutable std::mutex auto_mutex_;
