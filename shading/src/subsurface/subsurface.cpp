@@ -25,7 +25,7 @@ constexpr double kSlabTolerance = 0.005;
 constexpr double kTransmitFraction = 1e-4;
 constexpr double kSlabMinMfp = 0.01;
 // Directional lookups: the shift field's divergence undone (Subsurface::radiance) within this
-// factor of 1: a crease or a small bump is no sphere (the spheres of walk_bench need up to 0.17).
+// factor of 1, as the curvature's gain is bounded: a crease or a small bump is no sphere.
 constexpr double kMaxShiftDivergence = 0.3;
 
 }  // namespace
@@ -361,8 +361,8 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
         // shift pointing away from where the light falls straight) the images thin out: a
         // density (1 - div s) that the flat half-space's shift does not have (its field is
         // uniform) and that the profile's calibrated curvature term (6d) already holds. Undone
-        // to first order: a Skin1 sphere 3 diffusion lengths across lost 8.4 % of its flux with
-        // the shifts, 4.6 % without (DIPOLE.md 6b). Over the base spacing's window, as the
+        // to first order: a Skin1 sphere of 3 diffusion lengths' radius lost 8.4 % of its flux
+        // with the shifts, 4.6 % without, 1.7 % now (DIPOLE.md 6b). Over the base spacing's window, as the
         // curvature (the window follows x's own level, not the shifted lookup's).
         const int own = cloud.lookup_level(x);
         const Rgb div = cloud.shift_divergence_about(x, n, curvature_window(cloud, own));

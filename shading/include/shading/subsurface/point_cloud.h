@@ -160,8 +160,10 @@ public:
     double mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const;
     // Directional clouds: per channel the divergence of the lit points' shift field about x
     // (across x's tangent plane, the window of spacing h, each point by its area: a weighted
-    // least-squares linear fit s = s0 + J d, div = tr J; unlit points, whose shift is 0, stay
-    // out); 0 where fewer than 6 lit points or no fit.
+    // least-squares linear fit s = s0 + J d, div = tr J). The shifts as the light gave them
+    // (not faded at creases); points without one (unlit, or an edge cell whose centre the
+    // light misses) and points whose normal is over 30 degrees from nx stay out; 0 where fewer
+    // than 6 points are left or they lie along a line.
     Rgb shift_divergence_about(const Vec3& x, const Vec3& nx, double h) const;
     static constexpr int kSmearNodes = 3;
     static const double kSmearT[kSmearNodes];
