@@ -459,33 +459,51 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     return curved(m, cloud, x, n, level);
 }
 
-bool Subsurface::transmits(const PointCloud& cloud, double thickness, const Rgb& irradiance_here) const {
+const SlabProfiles* Subsurface::transmit_profiles(double thickness) const {
     // (Not with `directional on`: a slab lookup does not shift, and a dark side near a
     // terminator lost the shifted light it gets: a Skin1 sphere of 3 diffusion lengths, whose
     // diameter lies between the thresholds, went from 10.4 to 16.3 % pixel rms against exact
     // transport. Past the slab threshold such a finish keeps the direction-aware lookup.)
-    if (directional_ || !(thickness < transmit_threshold_)) return false;
-    // The far face's light can be no brighter than the cloud's brightest sample: it could
-    // matter where T times that is more than kSlabTolerance of the light this face reflects at
-    // x. Where it does not, the half-space's lookup differs from the slab's by less than that
-    // and its R (within kSlabTolerance of R_inf at this thickness).
-    const SlabProfiles& p = slabs_->node(thickness).p;
-    const double e_far = cloud.max_irradiance();
+    if (directional_ || !(thickness < transmit_threshold_)) return nullptr;
+    return &slabs_->node(thickness).p;
+}
+
+namespace {
+
+// The far face's light could matter where T times its irradiance e_far is more than
+// kSlabTolerance of the light this face reflects at x (`bound`, per channel), in some channel.
+bool far_face_shows(const SlabProfiles& p, double e_far, const Rgb& bound) {
     for (int c = 0; c < 3; ++c)
-        if (p.T_total[c] * e_far > kSlabTolerance * p.R_total[c] * irradiance_here[c]) return true;
+        if (p.T_total[c] * e_far > bound[c]) return true;
     return false;
+}
+
+Rgb reflected_bound(const SlabProfiles& p, const Rgb& irradiance_here) {
+    Rgb bound;
+    for (int c = 0; c < 3; ++c) bound[c] = kSlabTolerance * p.R_total[c] * irradiance_here[c];
+    return bound;
+}
+
+}  // namespace
+
+bool Subsurface::transmits(const PointCloud& cloud, double thickness, const Rgb& irradiance_here) const {
+    // The far face's light can be no brighter than the cloud's brightest sample. Where even that
+    // could not show, the half-space's lookup differs from the slab's by less than
+    // kSlabTolerance, and so does its R (within kSlabTolerance of R_inf at this thickness).
+    const SlabProfiles* p = transmit_profiles(thickness);
+    return p && far_face_shows(*p, cloud.max_irradiance(), reflected_bound(*p, irradiance_here));
 }
 
 bool Subsurface::transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
                            const Rgb& irradiance_here) const {
-    if (!transmits(cloud, thickness, irradiance_here)) return false;
     // ... and does, where a sample of the far face (facing away from x's, within half the
     // thickness of the point across from x: T's reach) is bright enough. On a sphere lit from
     // one side, a lit point's far face is its dark side: no slab lookup there.
-    const SlabProfiles& p = slabs_->node(thickness).p;
-    Rgb bound;
-    for (int c = 0; c < 3; ++c) bound[c] = kSlabTolerance * p.R_total[c] * irradiance_here[c];
-    return cloud.brighter_within(x - n * thickness, 0.5 * thickness, n * -1.0, p.T_total, bound);
+    const SlabProfiles* p = transmit_profiles(thickness);
+    if (!p) return false;
+    const Rgb bound = reflected_bound(*p, irradiance_here);
+    return far_face_shows(*p, cloud.max_irradiance(), bound) &&
+           cloud.brighter_within(x - n * thickness, 0.5 * thickness, n * -1.0, p->T_total, bound);
 }
 
 Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud,

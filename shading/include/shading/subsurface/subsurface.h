@@ -266,6 +266,9 @@ private:
     // The window (spacing) over which the curvature and the shift field's divergence are read
     // about a point of lookup level `level`: the base spacing's, whatever the level.
     static double curvature_window(const PointCloud& cloud, int level);
+    // transmits(): the slab node of `thickness` where a far face's light is considered at all
+    // (between the thresholds, not with `directional on`); null elsewhere.
+    const SlabProfiles* transmit_profiles(double thickness) const;
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
     mutable std::mutex auto_mutex_;
