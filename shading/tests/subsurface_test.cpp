@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <numeric>
+#include <random>
 #include <thread>
 #include <vector>
 
@@ -218,6 +219,62 @@ TEST(SubsurfaceDirectional, DivergingShiftsDoNotThinOutTheLight) {
         EXPECT_LT(images[k], 0.95 * s.profile().total()[k]) << k;
     }
     std::printf("diverging shifts (div 0.1): M / M(uniform shifts) %.4f %.4f %.4f\n", mb[0] / ma[0], mb[1] / ma[1], mb[2] / ma[2]);
+}
+
+// The fade of shifts where the surface bends (PointCloud::faded_shift): the cloud's search,
+// which prunes by the octree's normal cones, against every pair of points. The surface: a
+// sphere of radius 1 and, beside it, a roof (two half-planes meeting at 110 degrees along a
+// crease), shifts from 0.01 to 0.5 in random tangent directions, so fades span 0 to 1.
+TEST(SubsurfaceDirectional, CreaseFadeIsTheLargestNormalAngleWithinReach) {
+    std::vector<SurfacePoint> pts;
+    const int n_sphere = 2500;
+    for (int i = 0; i < n_sphere; ++i) {  // Fibonacci sphere
+        const double z = 1 - (i + 0.5) * 2.0 / n_sphere, r = std::sqrt(1 - z * z), phi = 2.399963229728653 * i;
+        const Vec3 n(r * std::cos(phi), r * std::sin(phi), z);
+        pts.push_back({n, n, 4 * kPi / n_sphere, Rgb(1.0)});
+    }
+    const double half = 110.0 / 2 * kPi / 180;  // the roof: apex on x = 3, ridge along y
+    for (int side = -1; side <= 1; side += 2)
+        for (int i = 0; i < 30; ++i)
+            for (int j = 0; j < 40; ++j) {
+                const double u = 0.025 + 0.05 * i, y = -1 + 0.05 * j;
+                const Vec3 down(side * std::sin(half), 0, -std::cos(half));
+                const Vec3 n = normalize(Vec3(side * std::cos(half), 0, std::sin(half)));
+                pts.push_back({Vec3(3, y, 0) + down * u, n, 0.0025, Rgb(1.0)});
+            }
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> U(0, 1);
+    for (SurfacePoint& p : pts) {
+        const Vec3 t = normalize(cross(p.n, std::fabs(p.n.x) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0)));
+        const Vec3 b = cross(p.n, t);
+        for (int c = 0; c < 3; ++c) {
+            const double len = 0.01 * std::pow(50.0, U(rng)), a = 2 * kPi * U(rng);
+            p.shift[c] = (t * std::cos(a) + b * std::sin(a)) * len;
+        }
+    }
+    const PointCloud cloud(pts, 0.05, Rgb(0.1));
+    ASSERT_TRUE(cloud.directional());
+    const std::vector<SurfacePoint>& q = cloud.points();
+    int partial = 0, none = 0, whole = 0;
+    double worst = 0;
+    for (std::size_t i = 0; i < q.size(); ++i) {
+        double smax = 0;
+        for (int c = 0; c < 3; ++c) smax = std::max(smax, length(q[i].shift[c]));
+        const double reach2 = std::pow(PointCloud::kSmearT[1] * smax, 2);
+        double min_cos = 1;
+        for (const SurfacePoint& o : q)
+            if (dot(o.p - q[i].p, o.p - q[i].p) <= reach2) min_cos = std::min(min_cos, dot(o.n, q[i].n));
+        const double a = std::acos(std::clamp(min_cos, -1.0, 1.0)) / (kPi / 3);
+        const double fade = std::max(0.0, 1 - a * a);
+        (fade == 0 ? none : fade == 1 ? whole : partial)++;
+        for (int c = 0; c < 3; ++c)
+            worst = std::max(worst, length(cloud.faded_shift(i, c) - q[i].shift[c] * fade) / length(q[i].shift[c]));
+    }
+    EXPECT_LT(worst, 1e-12);
+    EXPECT_GT(partial, 1000);
+    EXPECT_GT(none, 100);
+    std::printf("crease fade: %d points faded in part, %d whole, %d to none; worst %.2g of the shift\n", partial, whole,
+                none, worst);
 }
 
 TEST(SubsurfaceDirectional, HalfLitPlaneFollowsTheSmearedEdgeIntegral) {

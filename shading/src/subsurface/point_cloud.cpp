@@ -35,7 +35,7 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, double spacing, const R
     }
     levels_.push_back({spacing, near});
     if (!points_.empty()) build_tree(nullptr);
-    finish();
+    finish(nullptr);
 }
 
 PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, const ParallelFor* parallel)
@@ -51,7 +51,7 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, con
     if (!points_.empty()) build_tree(parallel);
     if (points_.empty() || finest == coarsest) {
         levels_.push_back({spacing_, near(spacing_)});
-        finish();
+        finish(parallel);
         return;
     }
     // Each point's lookup spacing: the fixed point of H <- max spacing within 3H (from its own
@@ -122,7 +122,7 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, con
     level_of_.resize(points_.size());
     for (std::size_t i = 0; i < points_.size(); ++i)
         level_of_[i] = std::uint8_t(std::find(distinct.begin(), distinct.end(), lookup[i]) - distinct.begin());
-    finish();
+    finish(parallel);
 }
 
 struct PointCloud::Tree {
@@ -339,13 +339,13 @@ void PointCloud::aggregate(Tree& t, int index, int first, int count, int n) {
     t.nodes[index].lit = flux.max_component() > 0;
 }
 
-void PointCloud::finish() {
+void PointCloud::finish(const ParallelFor* parallel) {
     leaves_.resize(points_.size());
     for (std::size_t i = 0; i < points_.size(); ++i) {
         leaves_[i] = {points_[i].p, points_[i].irradiance * points_[i].area};
         max_irradiance_ = std::max(max_irradiance_, points_[i].irradiance.max_component());
     }
-    build_shifts();
+    build_shifts(parallel);
     // Children come after their parent: one backward pass settles which nodes share one level.
     for (std::size_t k = nodes_.size(); k-- > 0;) {
         Node& nd = nodes_[k];
@@ -370,7 +370,7 @@ const double PointCloud::kSmearT[PointCloud::kSmearNodes] = {0.41577455678347908
 const double PointCloud::kSmearW[PointCloud::kSmearNodes] = {0.71109300992917302, 0.27851773356924085,
                                                             0.010389256501586136};
 
-void PointCloud::build_shifts() {
+void PointCloud::build_shifts(const ParallelFor* parallel) {
     bool any = false;
     for (const SurfacePoint& p : points_)
         for (int c = 0; c < 3 && !any; ++c)
@@ -382,9 +382,17 @@ void PointCloud::build_shifts() {
     // Where the surface bends within the reach of a point's images (a crease, a small bump) the
     // half-space's shift means nothing: it fades with the largest angle between the point's
     // normal and those within 2.3 shifts (the second image), as 1 - (angle / 60 deg)^2, down
-    // to none from 60 degrees (a sphere ten shifts in radius keeps 96 %).
+    // to none from 60 degrees (a sphere ten shifts in radius keeps 96 %): faded_shift.
+    // The search for that angle skips a node whose normal cone (cones_) cannot hold a normal
+    // farther from the point's than the farthest found so far, and stops once the fade is 0:
+    // the same fade as visiting every point within reach, at a fraction of the cost (the study
+    // blob in Skin1: 5.7x fewer instructions).
     constexpr double kFadeAngle = kPi / 3;
-    for (std::size_t i = 0; i < points_.size(); ++i) {
+    const double cos_fade_angle = std::cos(kFadeAngle);
+    std::vector<std::array<double, 2>> cone_cs(nodes_.size());  // cos, sin of each cone's angle
+    for (std::size_t k = 0; k < nodes_.size(); ++k)
+        cone_cs[k] = {std::cos(double(cones_[k].angle)), std::sin(double(cones_[k].angle))};
+    auto fade_one = [&](std::size_t i) {
         const SurfacePoint& pt = points_[i];
         double smax = 0;
         for (int c = 0; c < 3; ++c) smax = std::max(smax, length(pt.shift[c]));
@@ -392,12 +400,28 @@ void PointCloud::build_shifts() {
         if (smax > 0) {
             const double reach = kSmearT[1] * smax, reach2 = reach * reach;
             double min_cos = 1;
-            int stack[8 * kMaxDepth + 16];
+            // The least cosine any normal of node k can have with pt.n: cos(a + angle), a the
+            // angle from the cone's axis to pt.n (-1 once a + angle reaches pi).
+            auto least = [&](int k) {
+                const Cone& cone = cones_[k];
+                const double ca = std::clamp(double(cone.axis[0]) * pt.n.x + double(cone.axis[1]) * pt.n.y +
+                                                 double(cone.axis[2]) * pt.n.z,
+                                             -1.0, 1.0);
+                return ca <= -cone_cs[k][0] ? -1.0 : ca * cone_cs[k][0] - std::sqrt(1.0 - ca * ca) * cone_cs[k][1];
+            };
+            // Depth first, the child that may hold the farthest normal first (it lowers
+            // min_cos soonest, and then prunes its siblings).
+            struct Entry {
+                int k;
+                double least;
+            };
+            Entry stack[8 * kMaxDepth + 16];
             int top = 0;
-            stack[top++] = 0;
-            while (top > 0 && min_cos > -1) {
-                const Node& nd = nodes_[stack[--top]];
-                if (box_distance2(pt.p, nd.lo, nd.hi) > reach2) continue;
+            stack[top++] = {0, least(0)};
+            while (top > 0 && min_cos > cos_fade_angle) {
+                const Entry e = stack[--top];
+                if (e.least >= min_cos) continue;
+                const Node& nd = nodes_[e.k];
                 if (nd.child < 0) {
                     for (int q = nd.first; q < nd.first + nd.count; ++q) {
                         const Vec3 v = points_[q].p - pt.p;
@@ -405,13 +429,30 @@ void PointCloud::build_shifts() {
                     }
                     continue;
                 }
-                for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+                const int base = top;
+                for (int c = nd.child; c < nd.child + nd.children; ++c) {
+                    if (box_distance2(pt.p, nodes_[c].lo, nodes_[c].hi) > reach2) continue;
+                    const double l = least(c);
+                    if (l >= min_cos) continue;
+                    int j = top++;  // insertion: the least bound ends on top
+                    while (j > base && stack[j - 1].least < l) {
+                        stack[j] = stack[j - 1];
+                        --j;
+                    }
+                    stack[j] = {c, l};
+                }
             }
             const double a = std::acos(std::clamp(min_cos, -1.0, 1.0)) / kFadeAngle;
-            fade = std::max(0.0, 1.0 - a * a);
+            fade = min_cos > cos_fade_angle ? std::max(0.0, 1.0 - a * a) : 0.0;
         }
         for (int c = 0; c < 3; ++c) leaf_shift_[i].s[c] = pt.shift[c] * fade;
-    }
+    };
+    const std::size_t chunks = (points_.size() + 255) / 256;
+    auto chunk = [&](std::size_t c) {
+        for (std::size_t i = 256 * c; i < std::min(points_.size(), 256 * (c + 1)); ++i) fade_one(i);
+    };
+    if (parallel) (*parallel)(chunks, [&](std::size_t c, SurfaceSampler&) { chunk(c); });
+    else for (std::size_t c = 0; c < chunks; ++c) chunk(c);
     // Children come after their parent: one backward pass sums them up.
     node_shift_.resize(nodes_.size());
     std::vector<Rgb> flux(nodes_.size());
