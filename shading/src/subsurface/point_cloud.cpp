@@ -481,6 +481,20 @@ void PointCloud::build_shifts(const ParallelFor* parallel) {
             }
         }
         for (int c = 0; c < 3; ++c) ns.mean[c] = f[c] > 0 ? acc[c] * (1.0 / f[c]) : Vec3(0, 0, 0);
+        // how far the shifts of the channel's lit points lie from its mean (a bound, by the
+        // children's own: where its images can land, shifted_sum)
+        for (int c = 0; c < 3; ++c) {
+            double dev = 0;
+            if (nd.child < 0) {
+                for (int i = nd.first; i < nd.first + nd.count; ++i)
+                    if (leaves_[i].flux[c] > 0) dev = std::max(dev, length(leaf_shift_[i].s[c] - ns.mean[c]));
+            } else {
+                for (int j = nd.child; j < nd.child + nd.children; ++j)
+                    if (flux[j][c] > 0)
+                        dev = std::max(dev, length(node_shift_[j].mean[c] - ns.mean[c]) + node_shift_[j].dev[c]);
+            }
+            ns.dev[c] = std::min(dev, 2.0 * spread);
+        }
         ns.spread = spread;
         ns.reach = tmax * spread;
         flux[k] = f;

@@ -317,6 +317,37 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
     const double gain_cap = std::max(1.0, 1.0 / std::max(angle2, 1e-300));
     const double cut = std::sqrt(cut2);
     std::size_t opened = 0;
+    // Whether the first two images of every lit point of node k lie beyond the window's ramp,
+    // as the distance across x's tangent plane with the point's own height (add_point's r):
+    // by the box, moved by each image's mean offset t_k mean_c, less the points' deviation from
+    // it (t_k dev_c), the box's extent along nx taken out; or, where that says less, by the
+    // box less t_k times the largest shift.
+    auto images_beyond = [&](int k, const Node& nd, const NodeShift& ns) {
+        const double bd = std::sqrt(box_distance2(x, nd.lo, nd.hi));
+        if (bd - kSmearT[1] * ns.spread > outer) return true;
+        // the range of (x - p).nx over the box
+        double lo_n = dot(x, nx), hi_n = lo_n;
+        const double nn[3] = {nx.x, nx.y, nx.z};
+        for (int a = 0; a < 3; ++a) {
+            const double e0 = -nn[a] * double(nd.lo[a]), e1 = -nn[a] * double(nd.hi[a]);
+            lo_n += std::min(e0, e1);
+            hi_n += std::max(e0, e1);
+        }
+        const double own2 = lo_n > 0 ? lo_n * lo_n : (hi_n < 0 ? hi_n * hi_n : 0.0);  // the least v0n^2
+        for (int c = 0; c < 3; ++c) {
+            if (!(aggs_[k].flux[c] > 0)) continue;
+            for (int j = 0; j < 2; ++j) {
+                const double t = kSmearT[j];
+                const Vec3 m = ns.mean[c] * t;
+                const double mn = dot(m, nx);
+                const double hmax = std::max(std::fabs(lo_n - mn), std::fabs(hi_n - mn));
+                const double across = std::sqrt(std::max(0.0, box_distance2(x - m, nd.lo, nd.hi) - hmax * hmax));
+                const double r_new = std::sqrt(sqr(std::max(0.0, across - t * ns.dev[c])) + own2);
+                if (!(std::max(r_new, bd - t * ns.spread) > outer)) return false;
+            }
+        }
+        return true;
+    };
     auto add_point = [&](int i) {
         const Leaf& s = leaves_[i];
         const LeafShift& ls = leaf_shift_[i];
@@ -397,7 +428,7 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
             // Aggregated: nodes whose first two images lie beyond the window's ramp (the third,
             // a hundredth of the light, may reach into it: its near part then counts as far) and
             // that are small as seen from x.
-            if (bd - kSmearT[1] * ns.spread > outer) {
+            if (bd > outer && images_beyond(k, nd, ns)) {
                 const Agg& g = aggs_[k];
                 const double hn = dot(g.centre - x, nx);
                 // the distance across x's tangent plane to the centre moved by o, its direction

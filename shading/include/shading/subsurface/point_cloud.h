@@ -270,6 +270,7 @@ private:
         Vec3 mean[3];
         double reach = 0;   // t_max x the largest |shift|: every image within it of the box
         double spread = 0;  // the largest |shift|: the images' spread about the shifted points
+        double dev[3] = {0, 0, 0};  // per channel, the largest |shift - mean| of its lit points
     };
     struct LeafShift {
         Vec3 s[3];
