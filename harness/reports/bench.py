@@ -242,6 +242,16 @@ for _shape in ("blob", "difference", "mesh"):
             Side("fork", shapes.scene(_shape, _preset)), width=192, height=160, threads=2, goal=3.0,
             note="method profile, default settings")
 
+# What `directional on` (light entering at a slant: shading/DIPOLE.md 6b) costs, on the study's
+# blob and on the sphere of its size: its cloud's shifts (the fade at creases) and its lookups'
+# three images per point and channel. No goal: it is off by default.
+for _sphere in (False, True):
+    for _preset in ("Marble", "Skin1", "Ketchup", "Skimmilk"):
+        row(f"dipole directional on / off, {'sphere of the blob' if _sphere else 'blob'}: {_preset}",
+            Side("fork", shapes.scene("blob", _preset, sphere=_sphere)),
+            Side("fork", shapes.scene("blob", _preset, extra="directional on", sphere=_sphere)),
+            width=192, height=160, threads=2, note="method profile")
+
 
 @dataclass
 class Result:
