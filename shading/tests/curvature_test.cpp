@@ -92,6 +92,90 @@ TEST(CloudCurvature, ACylinderIsTheMeanOfItsTwoCurvatures) {
     EXPECT_NEAR(H * 2 * R, 1.0, 0.05);
 }
 
+// A refined cloud: points far denser than the window (a shadow edge refined 4 levels: 16 per
+// spacing across), where mean_curvature_about takes nodes whole from their sums about their
+// centroids. Against the same least squares summed point by point (written here): a sphere is
+// 1/R exactly either way; on an ellipsoid and on both faces of a thin sheet the two agree
+// within kDenseCurvatureTol of the ellipsoid's largest normal curvature.
+constexpr double kDenseCurvatureTol = 0.01;
+
+namespace {
+
+// The estimate point by point: the window's weights 1 - w(r) (rd_profile.h far_window, R0 = 2h),
+// points facing away from nx left out.
+double curvature_by_points(const std::vector<SurfacePoint>& pts, const Vec3& x, const Vec3& nx, double h) {
+    double num = 0, den = 0;
+    for (const SurfacePoint& q : pts) {
+        const Vec3 v = x - q.p;
+        const double r2 = dot(v, v);
+        if (!(r2 > 0) || !(dot(q.n, nx) > 0)) continue;
+        const double w = 1.0 - far_window(std::sqrt(r2), 2 * h, h);
+        num += q.area * w * dot(nx - q.n, v);
+        den += q.area * w * r2;
+    }
+    return den > 0 ? num / den : 0.0;
+}
+
+// Points of the ellipsoid (x/a)^2 + (y/b)^2 + (z/c)^2 = 1 within `cap` of the pole (0, 0, c),
+// about s apart (a grid in x, y), with their areas and outward normals; `lower` adds the
+// mirror image z -> -z (a thin lens: its other face inside the window when c is small).
+std::vector<SurfacePoint> ellipsoid_cap(double a, double b, double c, double cap, double s, bool lower = false) {
+    std::vector<SurfacePoint> pts;
+    for (double x = -cap; x <= cap; x += s)
+        for (double y = -cap; y <= cap; y += s) {
+            const double t = 1 - sqr(x / a) - sqr(y / b);
+            if (!(t > 0.05) || x * x + y * y > cap * cap) continue;
+            const double z = c * std::sqrt(t);
+            const Vec3 n = normalize(Vec3(x / (a * a), y / (b * b), z / (c * c)));
+            const double area = s * s / n.z;  // the grid cell projected onto the surface
+            pts.push_back({Vec3(x, y, z), n, area, Rgb(1.0)});
+            if (lower) pts.push_back({Vec3(x, y, -z), Vec3(n.x, n.y, -n.z), area, Rgb(1.0)});
+        }
+    return pts;
+}
+
+}  // namespace
+
+TEST(CloudCurvature, ADenseCloudTakesWholeNodesAsItsPointsWould) {
+    const double h = 0.3, s = h / 16;
+    // a sphere (a cap of it: R 7) is exact
+    {
+        std::vector<SurfacePoint> pts = ellipsoid_cap(7, 7, 7, 2.0, s);
+        const PointCloud cloud(pts, s);
+        for (Vec3 u : {Vec3(0, 0, 1), normalize(Vec3(0.05, -0.03, 1))}) {
+            const double H = cloud.mean_curvature_about(u * 7.0, u, h);
+            EXPECT_NEAR(H, 1.0 / 7.0, kSphereCurvatureTol);
+        }
+    }
+    // an ellipsoid: normal curvatures from 1/18 to 1/3 about the pole
+    double worst = 0;
+    {
+        const double a = 6, b = 4, c = 3;
+        std::vector<SurfacePoint> pts = ellipsoid_cap(a, b, c, 2.5, s);
+        const PointCloud cloud(pts, s);
+        const double kmax = c / (b * b);
+        for (const Vec3& p : {Vec3(0, 0, c), Vec3(0.7, -0.4, 0), Vec3(-1.1, 0.9, 0)}) {
+            const double t = 1 - sqr(p.x / a) - sqr(p.y / b);
+            const Vec3 x(p.x, p.y, c * std::sqrt(t));
+            const Vec3 n = normalize(Vec3(x.x / (a * a), x.y / (b * b), x.z / (c * c)));
+            const double H = cloud.mean_curvature_about(x, n, h), ref = curvature_by_points(pts, x, n, h);
+            worst = std::max(worst, std::fabs(H - ref) / kmax);
+            EXPECT_NEAR(H, ref, kDenseCurvatureTol * kmax) << x.x << "," << x.y;
+        }
+    }
+    // a thin lens (c 0.2: its other face 0.4 away at the pole, inside the window)
+    {
+        std::vector<SurfacePoint> pts = ellipsoid_cap(6, 4, 0.2, 2.0, s, true);
+        const PointCloud cloud(pts, s);
+        const Vec3 x(0.3, 0.2, 0.2 * std::sqrt(1 - sqr(0.3 / 6) - sqr(0.2 / 4)));
+        const Vec3 n = normalize(Vec3(x.x / 36, x.y / 16, x.z / 0.04));
+        const double H = cloud.mean_curvature_about(x, n, h), ref = curvature_by_points(pts, x, n, h);
+        worst = std::max(worst, std::fabs(H - ref) / (0.2 / 16));
+        EXPECT_NEAR(H, ref, kDenseCurvatureTol * (0.2 / 16));
+    }
+    std::printf("dense clouds: whole nodes against point by point, worst %.2e of the largest curvature\n", worst);
+}
+
 TEST(CurvatureCoefficient, GrowsWithTheIorAtEveryAlbedoAndIsHeldBeyondTheGrid) {
     for (double albedo : {0.2, 0.4, 0.5, 0.75, 0.9, 0.97, 0.995, 0.999}) {
         double last = 0;

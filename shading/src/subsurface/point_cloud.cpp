@@ -346,6 +346,7 @@ void PointCloud::finish(const ParallelFor* parallel) {
         max_irradiance_ = std::max(max_irradiance_, points_[i].irradiance.max_component());
     }
     build_shifts(parallel);
+    build_curve_sums();
     // Children come after their parent: one backward pass settles which nodes share one level.
     for (std::size_t k = nodes_.size(); k-- > 0;) {
         Node& nd = nodes_[k];
@@ -362,6 +363,49 @@ void PointCloud::finish(const ParallelFor* parallel) {
                 level = nodes_[c].uniform < 0 ? -1 : (level == -2 || level == nodes_[c].uniform ? nodes_[c].uniform : -1);
         }
         nd.uniform = std::int8_t(level < 0 ? -1 : level);
+    }
+}
+
+void PointCloud::build_curve_sums() {
+    curve_.assign(nodes_.size(), CurveSums{});
+    // Children come after their parent: one backward pass, each node's sums about its own
+    // centroid from its points' or its children's (the parallel-axis rule).
+    for (std::size_t k = nodes_.size(); k-- > 0;) {
+        const Node& nd = nodes_[k];
+        CurveSums& cs = curve_[k];
+        double area = 0;
+        Vec3 ap;
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                area += points_[i].area;
+                ap = ap + points_[i].p * points_[i].area;
+            }
+        } else {
+            for (int j = nd.child; j < nd.child + nd.children; ++j) {
+                area += curve_[j].area;
+                ap = ap + curve_[j].centre * curve_[j].area;
+            }
+        }
+        cs.cone_cos = std::cos(double(cones_[k].angle));
+        cs.area = area;
+        cs.centre = area > 0 ? ap * (1.0 / area) : Vec3(double(nd.lo[0]), double(nd.lo[1]), double(nd.lo[2]));
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const SurfacePoint& q = points_[i];
+                const Vec3 d = q.p - cs.centre;
+                cs.nsum = cs.nsum + q.n * q.area;
+                cs.q += q.area * dot(q.n, d);
+                cs.var += q.area * dot(d, d);
+            }
+        } else {
+            for (int j = nd.child; j < nd.child + nd.children; ++j) {
+                const CurveSums& c = curve_[j];
+                const Vec3 d = c.centre - cs.centre;
+                cs.nsum = cs.nsum + c.nsum;
+                cs.q += c.q + dot(c.nsum, d);
+                cs.var += c.var + c.area * dot(d, d);
+            }
+        }
     }
 }
 

@@ -263,7 +263,16 @@ private:
     std::vector<Node> nodes_;
     std::vector<Agg> aggs_;
     std::vector<Aux> aux_;
-    std::vector<Cone> cones_;             // read only by far_exitance_sided
+    std::vector<Cone> cones_;             // read only by far_exitance_sided and mean_curvature_about
+    // Per node, the sums mean_curvature_about needs of its points, about their area centroid c:
+    // A = sum A_i, n = sum A_i n_i, q = sum A_i n_i.(p_i - c), v = sum A_i |p_i - c|^2.
+    struct CurveSums {
+        Vec3 centre, nsum;
+        double area = 0, q = 0, var = 0;
+        double cone_cos = -1;  // cos of the node's normal cone's half-angle (cones_)
+    };
+    std::vector<CurveSums> curve_;
+    void build_curve_sums();
     // Directional clouds only (else empty): per point its shifts; per node the flux-weighted
     // mean shift per channel and the largest image offset of its points (t_max |shift|).
     struct NodeShift {
