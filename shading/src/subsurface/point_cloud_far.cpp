@@ -605,7 +605,7 @@ Rgb PointCloud::shift_divergence_about(const Vec3& x, const Vec3& nx, double h) 
     // s the shift, both across x's tangent plane
     double sums[3][12] = {};
     int count[3] = {0, 0, 0};
-    for_each_in_window(x, h, [&](int i, const Vec3& v, double, double w) {
+    auto point = [&](int i, const Vec3& v, double w) {
         // the face x lies on: a sheet's other face, or an edge's or a crease's other side
         // (normals more than 30 degrees apart: their shifts lie in other planes), stays out
         if (!(dot(points_[i].n, nx) > kDivergenceFaceCos)) return;
@@ -625,7 +625,94 @@ Rgb PointCloud::shift_divergence_about(const Vec3& x, const Vec3& nx, double h) 
             S[8] += a * t1 * u1, S[9] += a * t1 * u2, S[10] += a * t2 * u1, S[11] += a * t2 * u2;
             ++count[c];
         }
-    });
+    };
+    // A node under a quarter of the spacing across whose normals all lie within 30 degrees of
+    // nx is taken whole from its sums (div_) at the weight of its centre, as
+    // mean_curvature_about takes its nodes (a shadow edge refined 5 levels: 1024 samples per
+    // cell of the base spacing's window).
+    const double r0 = 2.0 * h, inner2 = sqr(r0 - h), outer2 = sqr(r0 + h), small2 = sqr(0.5 * h);
+    DivSums about_x[3];  // the whole nodes' sums, in 3-D about x
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const int k = stack[--top];
+        const Node& nd = nodes_[k];
+        if (box_distance2(x, nd.lo, nd.hi) >= outer2) continue;
+        if (double(nd.diag2) <= small2 && nd.count > 1) {
+            // every normal within 30 degrees of nx: phi + a < 30 deg, phi the cone axis's angle
+            // to nx, a its half-angle
+            const Cone& cone = cones_[k];
+            const double ca = std::min(1.0, double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z);
+            const double cc = curve_[k].cone_cos, sa = std::sqrt(std::max(0.0, 1.0 - ca * ca));
+            const double sc = std::sqrt(std::max(0.0, 1.0 - cc * cc));
+            if (ca > 0 && cc > 0 && ca * cc - sa * sc > kDivergenceFaceCos) {
+                const Vec3 cx = curve_[k].centre - x;
+                const double d[3] = {cx.x, cx.y, cx.z};  // from x to the node's centre
+                const double d2 = dot(cx, cx);
+                const double w = d2 <= inner2 ? 1.0 : (d2 >= outer2 ? 0.0 : 1.0 - window(std::sqrt(d2), r0, h));
+                for (int ch = 0; ch < 3; ++ch) {
+                    const DivSums& D = div_[k][ch];
+                    if (D.count == 0) continue;
+                    // in 3-D about x (projected across x's plane once, at the end): sum a (p - x)
+                    // = m + a d, sum a (p - x)(p - x)^T = M + m d^T + d m^T + a d d^T, sum a s (p
+                    // - x)^T = N + s d^T
+                    DivSums& T = about_x[ch];
+                    T.a += w * D.a;
+                    for (int i = 0; i < 3; ++i) {
+                        T.m[i] += w * (D.m[i] + D.a * d[i]);
+                        T.s[i] += w * D.s[i];
+                    }
+                    static constexpr int kI[6] = {0, 1, 2, 0, 0, 1}, kJ[6] = {0, 1, 2, 1, 2, 2};
+                    for (int e = 0; e < 6; ++e) {
+                        const int i = kI[e], j = kJ[e];
+                        T.M[e] += w * (D.M[e] + D.m[i] * d[j] + d[i] * D.m[j] + D.a * d[i] * d[j]);
+                    }
+                    for (int i = 0; i < 3; ++i)
+                        for (int j = 0; j < 3; ++j) T.N[3 * i + j] += w * (D.N[3 * i + j] + D.s[i] * d[j]);
+                    count[ch] += D.count;
+                }
+                continue;
+            }
+        }
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const Vec3 v = x - leaves_[i].p;
+                const double r2 = dot(v, v);
+                if (r2 >= outer2) continue;
+                point(i, v, 1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h)));
+            }
+            continue;
+        }
+        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+    }
+    // the whole nodes' sums across x's plane: u = (p - x).e, t = s.e
+    const double E[2][3] = {{e1.x, e1.y, e1.z}, {e2.x, e2.y, e2.z}};
+    for (int ch = 0; ch < 3; ++ch) {
+        const DivSums& T = about_x[ch];
+        if (!(T.a > 0)) continue;
+        double m[2], sv[2], M[2][2], N[2][2];
+        for (int i = 0; i < 2; ++i) {
+            const double* e = E[i];
+            m[i] = T.m[0] * e[0] + T.m[1] * e[1] + T.m[2] * e[2];
+            sv[i] = T.s[0] * e[0] + T.s[1] * e[1] + T.s[2] * e[2];
+        }
+        const double* P = T.M;
+        for (int i = 0; i < 2; ++i)
+            for (int j = 0; j < 2; ++j) {
+                const double* a = E[i];
+                const double* b = E[j];
+                M[i][j] = a[0] * (P[0] * b[0] + P[3] * b[1] + P[4] * b[2]) + a[1] * (P[3] * b[0] + P[1] * b[1] + P[5] * b[2]) +
+                          a[2] * (P[4] * b[0] + P[5] * b[1] + P[2] * b[2]);
+                double r = 0;
+                for (int q = 0; q < 3; ++q) r += a[q] * (T.N[3 * q] * b[0] + T.N[3 * q + 1] * b[1] + T.N[3 * q + 2] * b[2]);
+                N[i][j] = r;
+            }
+        double* S = sums[ch];
+        S[0] += T.a, S[1] += m[0], S[2] += m[1], S[3] += sv[0], S[4] += sv[1];
+        S[5] += M[0][0], S[6] += M[0][1], S[7] += M[1][1];
+        S[8] += N[0][0], S[9] += N[0][1], S[10] += N[1][0], S[11] += N[1][1];
+    }
     Rgb out;
     for (int c = 0; c < 3; ++c) {
         const double* S = sums[c];

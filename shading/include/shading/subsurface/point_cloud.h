@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <array>
 #include <vector>
 
 #include "shading/core/vec.h"
@@ -273,6 +274,17 @@ private:
     };
     std::vector<CurveSums> curve_;
     void build_curve_sums();
+    // Directional clouds only (else empty): per node and channel, the sums shift_divergence_about
+    // needs of its points that are lit in the channel and carry a shift, about the node's
+    // CurveSums centre c: a = sum A_i, m = sum A_i (p_i - c), M = sum A_i (p_i - c)(p_i - c)^T
+    // (xx yy zz xy xz yz), s = sum A_i s_i, N = sum A_i s_i (p_i - c)^T (row-major), and how
+    // many points.
+    struct DivSums {
+        double a = 0, m[3] = {0, 0, 0}, M[6] = {0, 0, 0, 0, 0, 0}, s[3] = {0, 0, 0}, N[9] = {};
+        int count = 0;
+    };
+    std::vector<std::array<DivSums, 3>> div_;
+    void build_div_sums();
     // Directional clouds only (else empty): per point its shifts; per node the flux-weighted
     // mean shift per channel and the largest image offset of its points (t_max |shift|).
     struct NodeShift {
