@@ -538,6 +538,44 @@ Rgb PointCloud::irradiance_about(const Vec3& y, double h) const {
     return i < 0 ? Rgb(0.0) : points_[std::size_t(i)].irradiance;
 }
 
+template <class Whole, class Point>
+void PointCloud::window_sum(const Vec3& x, const Vec3& nx, double h, double small, double min_cos, Whole&& whole,
+                            Point&& point) const {
+    if (nodes_.empty()) return;
+    const double r0 = 2.0 * h, inner2 = sqr(r0 - h), outer2 = sqr(r0 + h), small2 = sqr(small * h);
+    auto weight = [&](double r2) { return r2 <= inner2 ? 1.0 : (r2 >= outer2 ? 0.0 : 1.0 - window(std::sqrt(r2), r0, h)); };
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const int k = stack[--top];
+        const Node& nd = nodes_[k];
+        if (box_distance2(x, nd.lo, nd.hi) >= outer2) continue;
+        if (double(nd.diag2) <= small2 && nd.count > 1) {
+            // every normal within acos(min_cos) of nx: phi + a below it, phi the angle from the
+            // cone's axis to nx, a the cone's half-angle
+            const Cone& cone = cones_[k];
+            const double ca = std::min(1.0, double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z);
+            const double cc = curve_[k].cone_cos, sa = std::sqrt(std::max(0.0, 1.0 - ca * ca));
+            const double sc = std::sqrt(std::max(0.0, 1.0 - cc * cc));
+            if (ca > 0 && cc > 0 && ca * cc - sa * sc > min_cos) {
+                const Vec3 cx = curve_[k].centre - x;
+                whole(k, cx, weight(dot(cx, cx)));
+                continue;
+            }
+        }
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const Vec3 v = x - leaves_[i].p;
+                const double r2 = dot(v, v);
+                if (r2 < outer2) point(i, v, r2, weight(r2));
+            }
+            continue;
+        }
+        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
+    }
+}
+
 double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const {
     // Each point for its own area (a quadrature over the surface, whatever the sampling's
     // density); least squares of (nx - n_i).v - H r2 with weights A w / r2: its normal equation
@@ -548,47 +586,21 @@ double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h)
     // A |x - c|^2 + v. A refined cloud (a shadow edge 5 levels deep) holds 1024 samples per
     // window cell; the sum visits a few hundred nodes instead. On a sphere every term is H r2
     // either way: H = 1/R exactly.
-    if (nodes_.empty()) return 0.0;
     double num = 0, den = 0;
-    const double r0 = 2.0 * h, inner = r0 - h, inner2 = inner * inner, outer = r0 + h, outer2 = outer * outer;
-    const double small2 = sqr(0.25 * h);
-    int stack[8 * kMaxDepth + 16];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const int k = stack[--top];
-        const Node& nd = nodes_[k];
-        if (box_distance2(x, nd.lo, nd.hi) >= outer2) continue;
-        // Whole: a node small against the ramp whose normals are all within 90 degrees of nx
-        // (the cone's axis at phi from nx, its half-angle a: phi + a < 90 deg).
-        if (double(nd.diag2) <= small2 && nd.count > 1) {
-            const Cone& cone = cones_[k];
-            const double ca = double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z;
-            const double cc = curve_[k].cone_cos;
-            if (ca > 0 && cc > 0 && cc * cc > 1.0 - ca * ca) {
-                const CurveSums& cs = curve_[k];
-                const Vec3 v = x - cs.centre;
-                const double d2 = dot(v, v);
-                const double w = d2 <= inner2 ? 1.0 : (d2 >= outer2 ? 0.0 : 1.0 - window(std::sqrt(d2), r0, h));
-                num += w * (cs.area * dot(nx, v) - dot(cs.nsum, v) + cs.q);
-                den += w * (cs.area * d2 + cs.var);
-                continue;
-            }
-        }
-        if (nd.child < 0) {
-            for (int i = nd.first; i < nd.first + nd.count; ++i) {
-                const SurfacePoint& q = points_[i];
-                const Vec3 v = x - q.p;
-                const double r2 = dot(v, v);
-                if (r2 >= outer2 || !(r2 > 0) || !(dot(q.n, nx) > 0)) continue;
-                const double w = 1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h));
-                num += q.area * w * dot(nx - q.n, v);
-                den += q.area * w * r2;
-            }
-            continue;
-        }
-        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
-    }
+    window_sum(
+        x, nx, h, 0.25, 0.0,
+        [&](int k, const Vec3& cx, double w) {
+            const CurveSums& cs = curve_[k];
+            // v = x - c = -cx
+            num -= w * (cs.area * dot(nx, cx) - dot(cs.nsum, cx) - cs.q);
+            den += w * (cs.area * dot(cx, cx) + cs.var);
+        },
+        [&](int i, const Vec3& v, double r2, double w) {
+            const SurfacePoint& q = points_[i];
+            if (!(r2 > 0) || !(dot(q.n, nx) > 0)) return;
+            num += q.area * w * dot(nx - q.n, v);
+            den += q.area * w * r2;
+        });
     return den > 0 ? num / den : 0.0;
 }
 
@@ -626,66 +638,38 @@ Rgb PointCloud::shift_divergence_about(const Vec3& x, const Vec3& nx, double h) 
             ++count[c];
         }
     };
-    // A node under a quarter of the spacing across whose normals all lie within 30 degrees of
-    // nx is taken whole from its sums (div_) at the weight of its centre, as
-    // mean_curvature_about takes its nodes (a shadow edge refined 5 levels: 1024 samples per
-    // cell of the base spacing's window).
-    const double r0 = 2.0 * h, inner2 = sqr(r0 - h), outer2 = sqr(r0 + h), small2 = sqr(0.5 * h);
+    // A node under half the spacing across whose normals all lie within 30 degrees of nx is
+    // taken whole from its sums (div_) at the weight of its centre, as mean_curvature_about
+    // takes its nodes (a shadow edge refined 5 levels: 1024 samples per cell of the base
+    // spacing's window).
     DivSums about_x[3];  // the whole nodes' sums, in 3-D about x
-    int stack[8 * kMaxDepth + 16];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        const int k = stack[--top];
-        const Node& nd = nodes_[k];
-        if (box_distance2(x, nd.lo, nd.hi) >= outer2) continue;
-        if (double(nd.diag2) <= small2 && nd.count > 1) {
-            // every normal within 30 degrees of nx: phi + a < 30 deg, phi the cone axis's angle
-            // to nx, a its half-angle
-            const Cone& cone = cones_[k];
-            const double ca = std::min(1.0, double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z);
-            const double cc = curve_[k].cone_cos, sa = std::sqrt(std::max(0.0, 1.0 - ca * ca));
-            const double sc = std::sqrt(std::max(0.0, 1.0 - cc * cc));
-            if (ca > 0 && cc > 0 && ca * cc - sa * sc > kDivergenceFaceCos) {
-                const Vec3 cx = curve_[k].centre - x;
-                const double d[3] = {cx.x, cx.y, cx.z};  // from x to the node's centre
-                const double d2 = dot(cx, cx);
-                const double w = d2 <= inner2 ? 1.0 : (d2 >= outer2 ? 0.0 : 1.0 - window(std::sqrt(d2), r0, h));
-                for (int ch = 0; ch < 3; ++ch) {
-                    const DivSums& D = div_[k][ch];
-                    if (D.count == 0) continue;
-                    // in 3-D about x (projected across x's plane once, at the end): sum a (p - x)
-                    // = m + a d, sum a (p - x)(p - x)^T = M + m d^T + d m^T + a d d^T, sum a s (p
-                    // - x)^T = N + s d^T
-                    DivSums& T = about_x[ch];
-                    T.a += w * D.a;
-                    for (int i = 0; i < 3; ++i) {
-                        T.m[i] += w * (D.m[i] + D.a * d[i]);
-                        T.s[i] += w * D.s[i];
-                    }
-                    static constexpr int kI[6] = {0, 1, 2, 0, 0, 1}, kJ[6] = {0, 1, 2, 1, 2, 2};
-                    for (int e = 0; e < 6; ++e) {
-                        const int i = kI[e], j = kJ[e];
-                        T.M[e] += w * (D.M[e] + D.m[i] * d[j] + d[i] * D.m[j] + D.a * d[i] * d[j]);
-                    }
-                    for (int i = 0; i < 3; ++i)
-                        for (int j = 0; j < 3; ++j) T.N[3 * i + j] += w * (D.N[3 * i + j] + D.s[i] * d[j]);
-                    count[ch] += D.count;
+    window_sum(
+        x, nx, h, 0.5, kDivergenceFaceCos,
+        [&](int k, const Vec3& cx, double w) {
+            const double d[3] = {cx.x, cx.y, cx.z};  // from x to the node's centre
+            for (int ch = 0; ch < 3; ++ch) {
+                const DivSums& D = div_[k][ch];
+                if (D.count == 0) continue;
+                // in 3-D about x (projected across x's plane once, at the end): sum a (p - x) =
+                // m + a d, sum a (p - x)(p - x)^T = M + m d^T + d m^T + a d d^T, sum a s (p -
+                // x)^T = N + s d^T
+                DivSums& T = about_x[ch];
+                T.a += w * D.a;
+                for (int i = 0; i < 3; ++i) {
+                    T.m[i] += w * (D.m[i] + D.a * d[i]);
+                    T.s[i] += w * D.s[i];
                 }
-                continue;
+                static constexpr int kI[6] = {0, 1, 2, 0, 0, 1}, kJ[6] = {0, 1, 2, 1, 2, 2};
+                for (int e = 0; e < 6; ++e) {
+                    const int i = kI[e], j = kJ[e];
+                    T.M[e] += w * (D.M[e] + D.m[i] * d[j] + d[i] * D.m[j] + D.a * d[i] * d[j]);
+                }
+                for (int i = 0; i < 3; ++i)
+                    for (int j = 0; j < 3; ++j) T.N[3 * i + j] += w * (D.N[3 * i + j] + D.s[i] * d[j]);
+                count[ch] += D.count;
             }
-        }
-        if (nd.child < 0) {
-            for (int i = nd.first; i < nd.first + nd.count; ++i) {
-                const Vec3 v = x - leaves_[i].p;
-                const double r2 = dot(v, v);
-                if (r2 >= outer2) continue;
-                point(i, v, 1.0 - (r2 <= inner2 ? 0.0 : window(std::sqrt(r2), r0, h)));
-            }
-            continue;
-        }
-        for (int c = 0; c < nd.children; ++c) stack[top++] = nd.child + c;
-    }
+        },
+        [&](int i, const Vec3& v, double, double w) { point(i, v, w); });
     // the whole nodes' sums across x's plane: u = (p - x).e, t = s.e
     const double E[2][3] = {{e1.x, e1.y, e1.z}, {e2.x, e2.y, e2.z}};
     for (int ch = 0; ch < 3; ++ch) {

@@ -223,21 +223,23 @@ RdProfile::Hermite RdProfile::hermite(double r) const {
     return h;
 }
 
+inline RdProfile::Values RdProfile::values(double r) const {
+    Values v;
+    std::size_t i;
+    locate(r, inv_scale_, &i, &v.u);
+    v.a = &nodes_[i];
+    v.b = &nodes_[i + 1];
+    v.dr = node_r_[i + 1] - node_r_[i];
+    const double u = v.u, u2 = u * u, u3 = u2 * u;
+    v.h00 = 2 * u3 - 3 * u2 + 1, v.h10 = (u3 - 2 * u2 + u) * v.dr, v.h01 = 3 * u2 - 2 * u3, v.h11 = (u3 - u2) * v.dr;
+    return v;
+}
+
 Rgb RdProfile::rd(double r) const {
     if (!(r < r_max_)) return Rgb(0.0);
-    // hermite()'s value basis alone (the same arithmetic, the same bits): every point of a far
-    // sum reads it
-    std::size_t i;
-    double u;
-    locate(r, inv_scale_, &i, &u);
-    const Node& a = nodes_[i];
-    const Node& b = nodes_[i + 1];
-    const double dr = node_r_[i + 1] - node_r_[i];
-    const double u2 = u * u, u3 = u2 * u;
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = (u3 - 2 * u2 + u) * dr, h01 = 3 * u2 - 2 * u3, h11 = (u3 - u2) * dr;
-    auto f = [&](int c) { return h00 * a.f[c] + h10 * a.d1[c] + h01 * b.f[c] + h11 * b.d1[c]; };
+    const Values v = values(r);
     // Cubic Hermite can dip a hair below 0 where Rd itself is ~0 (the far tail): clamp.
-    return Rgb(std::max(0.0, f(0)), std::max(0.0, f(1)), std::max(0.0, f(2)));
+    return Rgb(std::max(0.0, v.f(0)), std::max(0.0, v.f(1)), std::max(0.0, v.f(2)));
 }
 
 void RdProfile::eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const {
@@ -251,19 +253,9 @@ void RdProfile::eval(double r, Rgb* f, Rgb* d1, Rgb* d2) const {
     *d2 = Rgb(h.d2(0), h.d2(1), h.d2(2));
 }
 
-// One channel, per image of a directional lookup (millions per render): hermite()'s basis
-// written out, only the terms the channel's value needs (the same arithmetic, the same bits).
 double RdProfile::rd_channel(int c, double r) const {
     if (!(r < r_max_)) return 0.0;
-    std::size_t i;
-    double u;
-    locate(r, inv_scale_, &i, &u);
-    const Node& a = nodes_[i];
-    const Node& b = nodes_[i + 1];
-    const double dr = node_r_[i + 1] - node_r_[i];
-    const double u2 = u * u, u3 = u2 * u;
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = (u3 - 2 * u2 + u) * dr, h01 = 3 * u2 - 2 * u3, h11 = (u3 - u2) * dr;
-    return std::max(0.0, h00 * a.f[c] + h10 * a.d1[c] + h01 * b.f[c] + h11 * b.d1[c]);
+    return std::max(0.0, values(r).f(c));
 }
 
 void RdProfile::eval_channel(int c, double r, double* f, double* d1, double* d2) const {
@@ -271,18 +263,15 @@ void RdProfile::eval_channel(int c, double r, double* f, double* d1, double* d2)
         *f = *d1 = *d2 = 0.0;
         return;
     }
-    std::size_t i;
-    double u;
-    locate(r, inv_scale_, &i, &u);
-    const Node& a = nodes_[i];
-    const Node& b = nodes_[i + 1];
-    const double dr = node_r_[i + 1] - node_r_[i];
-    const double u2 = u * u, u3 = u2 * u;
-    const double h00 = 2 * u3 - 3 * u2 + 1, h10 = (u3 - 2 * u2 + u) * dr, h01 = 3 * u2 - 2 * u3, h11 = (u3 - u2) * dr;
-    const double g00 = (6 * u2 - 6 * u) * (1.0 / dr), g10 = 3 * u2 - 4 * u + 1, g11 = 3 * u2 - 2 * u;
-    *f = h00 * a.f[c] + h10 * a.d1[c] + h01 * b.f[c] + h11 * b.d1[c];
+    const Values v = values(r);
+    const double u = v.u, u2 = u * u;
+    // hermite()'s slope weights
+    const double g00 = (6 * u2 - 6 * u) * (1.0 / v.dr), g10 = 3 * u2 - 4 * u + 1, g11 = 3 * u2 - 2 * u;
+    const Node& a = *v.a;
+    const Node& b = *v.b;
+    *f = v.f(c);
     *d1 = g00 * (a.f[c] - b.f[c]) + g10 * a.d1[c] + g11 * b.d1[c];
-    *d2 = h00 * a.d2[c] + h10 * a.d3[c] + h01 * b.d2[c] + h11 * b.d3[c];
+    *d2 = v.h00 * a.d2[c] + v.h10 * a.d3[c] + v.h01 * b.d2[c] + v.h11 * b.d3[c];
 }
 
 Rgb RdProfile::disc(double R) const {

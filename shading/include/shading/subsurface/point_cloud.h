@@ -244,6 +244,13 @@ private:
     // about y (irradiance_about, mean_curvature_about).
     template <class Visit>
     void for_each_in_window(const Vec3& y, double h, Visit&& visit) const;
+    // The same window about x, where a node under `small` times h across whose normals all lie
+    // within acos(min_cos) of nx is visited whole: whole(k, c - x, 1 - w at its centre c
+    // (CurveSums)); the other points within the window: point(i, x - p_i, |x - p_i|^2, 1 - w)
+    // (mean_curvature_about, shift_divergence_about).
+    template <class Whole, class Point>
+    void window_sum(const Vec3& x, const Vec3& nx, double h, double small, double min_cos, Whole&& whole,
+                    Point&& point) const;
     // far_exitance (kSided false: every point on x's side, `transmit` unused) and
     // far_exitance_sided (true) in one traversal; cut_same2: the squared cutoff of `same`.
     template <bool kSided>

@@ -96,6 +96,14 @@ private:
         double d2(int c) const { return h00 * a->d2[c] + h10 * a->d3[c] + h01 * b->d2[c] + h11 * b->d3[c]; }
     };
     Hermite hermite(double r) const;
+    // hermite()'s value weights alone (the same arithmetic, the same bits), inline: what a
+    // lookup of Rd needs (rd, rd_channel, eval_channel), millions of times per render.
+    struct Values {
+        const Node *a, *b;
+        double u, dr, h00, h10, h01, h11;
+        double f(int c) const { return h00 * a->f[c] + h10 * a->d1[c] + h01 * b->f[c] + h11 * b->d1[c]; }
+    };
+    Values values(double r) const;
     Fn rd_, disc_;
     double scale_ = 1, inv_scale_ = 1, r_max_ = 1;
     Rgb total_;
