@@ -322,8 +322,8 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
     // by the box, moved by each image's mean offset t_k mean_c, less the points' deviation from
     // it (t_k dev_c), the box's extent along nx taken out; or, where that says less, by the
     // box less t_k times the largest shift.
-    auto images_beyond = [&](int k, const Node& nd, const NodeShift& ns) {
-        const double bd = std::sqrt(box_distance2(x, nd.lo, nd.hi));
+    // bd: the distance from x to the box.
+    auto images_beyond = [&](int k, const Node& nd, const NodeShift& ns, double bd) {
         if (bd - kSmearT[1] * ns.spread > outer) return true;
         // the range of (x - p).nx over the box
         double lo_n = dot(x, nx), hi_n = lo_n;
@@ -428,7 +428,7 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
             // Aggregated: nodes whose first two images lie beyond the window's ramp (the third,
             // a hundredth of the light, may reach into it: its near part then counts as far) and
             // that are small as seen from x.
-            if (bd > outer && images_beyond(k, nd, ns)) {
+            if (bd > outer && images_beyond(k, nd, ns, bd)) {
                 const Agg& g = aggs_[k];
                 const double hn = dot(g.centre - x, nx);
                 // the distance across x's tangent plane to the centre moved by o, its direction

@@ -3,11 +3,11 @@
 // spirit of Jensen & Buhler 2002 (shading/DIPOLE.md 6).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <limits>
-#include <array>
 #include <vector>
 
 #include "shading/core/vec.h"
@@ -271,7 +271,7 @@ private:
     std::vector<Node> nodes_;
     std::vector<Agg> aggs_;
     std::vector<Aux> aux_;
-    std::vector<Cone> cones_;             // read only by far_exitance_sided and mean_curvature_about
+    std::vector<Cone> cones_;             // read by far_exitance_sided, window_sum and the crease fade's search
     // Per node, the sums mean_curvature_about needs of its points, about their area centroid c:
     // A = sum A_i, n = sum A_i n_i, q = sum A_i n_i.(p_i - c), v = sum A_i |p_i - c|^2.
     struct CurveSums {
