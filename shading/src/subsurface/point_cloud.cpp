@@ -345,8 +345,8 @@ void PointCloud::finish(const ParallelFor* parallel) {
         leaves_[i] = {points_[i].p, points_[i].irradiance * points_[i].area};
         max_irradiance_ = std::max(max_irradiance_, points_[i].irradiance.max_component());
     }
+    build_curve_sums();  // (its cones' cosines serve build_shifts too)
     build_shifts(parallel);
-    build_curve_sums();
     build_div_sums();
     // Children come after their parent: one backward pass settles which nodes share one level.
     for (std::size_t k = nodes_.size(); k-- > 0;) {
@@ -484,9 +484,8 @@ void PointCloud::build_shifts(const ParallelFor* parallel) {
     // blob in Skin1: 5.7x fewer instructions).
     constexpr double kFadeAngle = kPi / 3;
     const double cos_fade_angle = std::cos(kFadeAngle);
-    std::vector<std::array<double, 2>> cone_cs(nodes_.size());  // cos, sin of each cone's angle
-    for (std::size_t k = 0; k < nodes_.size(); ++k)
-        cone_cs[k] = {std::cos(double(cones_[k].angle)), std::sin(double(cones_[k].angle))};
+    std::vector<double> cone_sin(nodes_.size());  // of each cone's angle (its cosine: curve_)
+    for (std::size_t k = 0; k < nodes_.size(); ++k) cone_sin[k] = std::sin(double(cones_[k].angle));
     auto fade_one = [&](std::size_t i) {
         const SurfacePoint& pt = points_[i];
         double smax = 0;
@@ -502,7 +501,8 @@ void PointCloud::build_shifts(const ParallelFor* parallel) {
                 const double ca = std::clamp(double(cone.axis[0]) * pt.n.x + double(cone.axis[1]) * pt.n.y +
                                                  double(cone.axis[2]) * pt.n.z,
                                              -1.0, 1.0);
-                return ca <= -cone_cs[k][0] ? -1.0 : ca * cone_cs[k][0] - std::sqrt(1.0 - ca * ca) * cone_cs[k][1];
+                const double cc = curve_[k].cone_cos;
+                return ca <= -cc ? -1.0 : ca * cc - std::sqrt(1.0 - ca * ca) * cone_sin[k];
             };
             // Depth first, the child that may hold the farthest normal first (it lowers
             // min_cos soonest, and then prunes its siblings).
