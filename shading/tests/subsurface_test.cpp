@@ -884,6 +884,50 @@ TEST(SubsurfaceSampling, NoSampleLinesRunAlongTheEdgesOfABox) {
     }
 }
 
+// A sampler whose segment_hits gives the whole line (as edge means cast before the segments),
+// counting the calls.
+class WholeLineSampler : public TestSampler {
+public:
+    using TestSampler::TestSampler;
+    void segment_hits(int axis, const Vec3& o, double t0, double t1, std::vector<Hit>* hits) override {
+        ++segments;
+        widest = std::max(widest, t1 - t0);
+        line_hits(axis, o, hits);
+    }
+    int segments = 0;
+    double widest = 0;
+};
+
+TEST(SubsurfaceSampling, EdgeMeansNeedOnlyTheCrossingsAboutTheirSheet) {
+    // A sphere lit on a cap (a light edge along a circle of latitude): each edge sample's
+    // sub-lines ask for the crossings within its depth window alone (the renderer casts only
+    // that segment, patch 0029). The cloud is the same, bit for bit, as with every crossing of
+    // each sub-line: the window holds the crossing the sample's sheet takes. Unrefined and
+    // refined, the sub-lines' crossings on a curved face lie on both sides of the sample's depth.
+    for (int levels : {0, 3}) {
+        SubsurfaceSettings st;
+        st.spacing = 0.25;
+        st.max_levels = levels;
+        Subsurface a(marble(), st), b(marble(), st);
+        auto cap = [](const Vec3&, const Vec3& n) { return Rgb(n.y > 0.3 ? 1.0 : 0.0, n.y > 0.5 ? 0.5 : 0.0, 0.25 * (n.y > 0.1)); };
+        TestSampler windowed(TestSampler::Sphere, Vec3(-5, -5, -5), Vec3(5, 5, 5), cap);
+        WholeLineSampler whole(TestSampler::Sphere, Vec3(-5, -5, -5), Vec3(5, 5, 5), cap);
+        int key = 0;
+        const PointCloud& ca = a.cloud(&key, windowed);
+        const PointCloud& cb = b.cloud(&key, whole);
+        EXPECT_GT(whole.segments, 1000) << "levels " << levels;  // edge means ran, sub-line by sub-line
+        EXPECT_LE(whole.widest, 2 * 4 * st.spacing + 1e-12);     // within kDepthSlack (4) spacings of the sheet
+        ASSERT_EQ(ca.points().size(), cb.points().size()) << "levels " << levels;
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < ca.points().size(); ++i) {
+            const SurfacePoint &p = ca.points()[i], &q = cb.points()[i];
+            differ += !(p.p.x == q.p.x && p.p.y == q.p.y && p.p.z == q.p.z && p.irradiance.r == q.irradiance.r &&
+                        p.irradiance.g == q.irradiance.g && p.irradiance.b == q.irradiance.b && p.area == q.area);
+        }
+        EXPECT_EQ(differ, 0u) << "levels " << levels;
+    }
+}
+
 TEST(SubsurfaceSampling, ALitSpotsFluxDoesNotDependOnWhereTheGridFalls) {
     // The top face of a slab lit inside a disc of radius 5 spacings, unrefined: each sample's
     // centre decided whether its whole cell was lit, and the disc's flux came out -4.5 % or

@@ -76,6 +76,11 @@ public:
         object_.line_hits(axis, origin, &found_);
         for (const DipoleObject::Hit& h : found_) hits->push_back(Hit{h.t, h.p, h.n, h.lift});
     }
+    void segment_hits(int axis, const Vec3& origin, double t0, double t1, std::vector<Hit>* hits) override {
+        found_.clear();
+        object_.segment_hits(axis, origin, t0, t1, &found_);
+        for (const DipoleObject::Hit& h : found_) hits->push_back(Hit{h.t, h.p, h.n, h.lift});
+    }
     Rgb irradiance(const Vec3& p, const Vec3& n) override { return object_.irradiance(p, n); }
     std::string describe() override { return object_.describe(); }
     ViewVolume view() override {

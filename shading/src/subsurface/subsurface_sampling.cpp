@@ -355,7 +355,7 @@ std::size_t Sampling::edge_means(const SamplingPlan& plan, double threshold) {
                 q[b] += (u + 0.5) * step - 0.5 * h;
                 q[c] += (v + 0.5) * step - 0.5 * h;
                 hits.clear();
-                s.line_hits(a, Vec3(q[0], q[1], q[2]), &hits);
+                s.segment_hits(a, Vec3(q[0], q[1], q[2]), at.t - kDepthSlack * h, at.t + kDepthSlack * h, &hits);
                 const int i = nearest_on_sheet(hits.data(), int(hits.size()), at.t, at.n, kDepthSlack * h);
                 if (i < 0) continue;
                 const SurfaceSampler::Hit& H = hits[std::size_t(i)];

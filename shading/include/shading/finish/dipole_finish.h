@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "shading/core/depth_window.h"
 #include "shading/core/smooth_facet.h"
 #include "shading/finish/finish.h"
 
@@ -83,6 +84,14 @@ public:
     virtual bool bounds(Vec3* lo, Vec3* hi) = 0;
     // Every crossing of the object's surface by origin + t e_axis, t > 0, in any order.
     virtual void line_hits(int axis, const Vec3& origin, std::vector<Hit>* hits) = 0;
+    // Those crossings with t0 <= t <= t1, as line_hits gives them (t from origin, the same
+    // outward normal). The default filters line_hits; a renderer that can cast the segment
+    // alone saves the rest of the line.
+    virtual void segment_hits(int axis, const Vec3& origin, double t0, double t1, std::vector<Hit>* hits) {
+        const std::size_t first = hits->size();
+        line_hits(axis, origin, hits);
+        keep_depths_within(hits, first, t0, t1);
+    }
     // Transmitted irradiance E_t at p (outward unit normal n), POV units.
     virtual Rgb irradiance(const Vec3& p, const Vec3& n) = 0;
     // What the object is, for messages ("sphere").

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "shading/core/depth_window.h"
 #include "shading/core/vec.h"
 #include "shading/subsurface/point_cloud.h"
 
@@ -48,6 +49,15 @@ public:
     // Every crossing of the object's surface by the ray origin + t e_axis, t > 0 (origin is
     // outside the bounding box), in any order.
     virtual void line_hits(int axis, const Vec3& origin, std::vector<Hit>* hits) = 0;
+    // The crossings of line_hits's line with t0 <= t <= t1, each as line_hits gives it (t from
+    // origin, the same outward normal), in any order. The default filters line_hits; a
+    // renderer may cast the segment alone (an edge sample's sub-lines need only the crossings
+    // about their own sheet: DIPOLE.md 6, 2a).
+    virtual void segment_hits(int axis, const Vec3& origin, double t0, double t1, std::vector<Hit>* hits) {
+        const std::size_t first = hits->size();
+        line_hits(axis, origin, hits);
+        keep_depths_within(hits, first, t0, t1);
+    }
     // Transmitted irradiance E_t at p (outward unit normal n), POV units.
     virtual Rgb irradiance(const Vec3& p, const Vec3& n) = 0;
     // What the object is, for messages ("sphere").
