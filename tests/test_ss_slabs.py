@@ -185,3 +185,6 @@ def test_medium_outside_the_slab_tables_says_so_once():
     at = [i for i, line in enumerate(lines) if "thin objects with profile exact use the multipole" in line]
     print("\n".join(lines[at[0]:at[0] + 3]) if at else r.stderr[-1500:])
     assert len(at) == 1 and "g = 0.5 is outside the tables' range [0, 0]" in lines[at[0] + 2]
+    # ... and, the medium scattering forward (g >= 0.5), what that costs and what gets it right
+    advice = " ".join(line.strip() for line in lines[at[0] + 3:at[0] + 8])
+    assert "forward-scattering" in advice and "`method random_walk`" in advice, advice

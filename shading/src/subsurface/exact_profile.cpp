@@ -203,8 +203,20 @@ SlabProfiles ExactProfile::slab_profiles(const Dipole& dipole, double d, bool si
 
 std::string ExactProfile::slab_note() const {
     if (slab_tables()) return "";
-    return "Dipole: thin objects with profile exact use the multipole, scaled to the\n"
-           "  exact total; slab tables subsurface_slabs.ssp:\n  " + slab_gap();
+    std::string note = "Dipole: thin objects with profile exact use the multipole, scaled to the\n"
+                       "  exact total; slab tables subsurface_slabs.ssp:\n  " + slab_gap();
+    // A forward-scattering sheet's light is mostly low orders, which no diffusion profile holds:
+    // say what it costs and what gets it right (walk_bench's sheets, DIPOLE.md 6a).
+    double g = 0;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) g = std::max(g, g_[c]);
+    if (g >= kForwardSheetNote)
+        note += "\n  A sheet a few mean free paths thin of a forward-scattering medium is lit\n"
+                "  mostly by low orders, which the multipole misses (Skin1 at g 0.9, ior 1,\n"
+                "  0.25 reduced mfp thick: seen through 99 % dark, its lit side 3.4x too\n"
+                "  bright): `method random_walk` (or `method auto`) follows its transport\n"
+                "  exactly.";
+    return note;
 }
 
 // ---------------------------------------------------------------- slabs

@@ -41,7 +41,10 @@ public:
     // Thin geometry: the tables' slabs where they cover a channel (make_exact_slab_profiles),
     // the multipole scaled to this profile's total elsewhere.
     SlabProfiles slab_profiles(const Dipole& dipole, double d, bool single_traced) const override;
+    // Why thin objects take the multipole, and from a channel's g of kForwardSheetNote on, that
+    // a forward-scattering sheet wants the walk.
     std::string slab_note() const override;
+    static constexpr double kForwardSheetNote = 0.5;
     // Warnings for the user (g clamped to the tables).
     const std::vector<std::string>& notes() const { return notes_; }
     // The channel in transport units (nullptr for a channel that does not scatter).
