@@ -420,40 +420,28 @@ void PointCloud::build_div_sums() {
         const Vec3 c = curve_[k].centre;
         for (int ch = 0; ch < 3; ++ch) {
             DivSums& D = div_[k][ch];
-            // one point or child's sums, moved from its own centre o (a point: its position, with
+            // a point or child's sums, moved from its own centre o (a point: its position, with
             // no spread of its own) to c
-            auto add = [&](double a, const Vec3& o, const double* m, const double* M, const double* sv,
-                           const double* N, int count) {
+            auto add = [&](const DivSums& from, const Vec3& o) {
                 const double d[3] = {o.x - c.x, o.y - c.y, o.z - c.z};
-                D.a += a;
-                for (int i = 0; i < 3; ++i) D.m[i] += m[i] + a * d[i];
-                // sum a (q + d)(q + d)^T = M + m d^T + d m^T + a d d^T
-                static constexpr int kI[6] = {0, 1, 2, 0, 0, 1}, kJ[6] = {0, 1, 2, 1, 2, 2};
-                for (int e = 0; e < 6; ++e) {
-                    const int i = kI[e], j = kJ[e];
-                    D.M[e] += M[e] + m[i] * d[j] + d[i] * m[j] + a * d[i] * d[j];
-                }
-                for (int i = 0; i < 3; ++i) D.s[i] += sv[i];
-                // sum a s (q + d)^T = N + s d^T
-                for (int i = 0; i < 3; ++i)
-                    for (int j = 0; j < 3; ++j) D.N[3 * i + j] += N[3 * i + j] + sv[i] * d[j];
-                D.count += count;
+                D.add_moved(from, d, 1.0);
             };
             if (nd.child < 0) {
                 for (int i = nd.first; i < nd.first + nd.count; ++i) {
                     // the points shift_divergence_about takes: lit in the channel, with a shift
                     const Vec3& sv = points_[i].shift[ch];
                     if (!(leaves_[i].flux[ch] > 0) || dot(sv, sv) == 0) continue;
-                    const double a = points_[i].area;
-                    const double zero3[3] = {0, 0, 0}, zero6[6] = {0, 0, 0, 0, 0, 0}, zero9[9] = {};
-                    const double as[3] = {a * sv.x, a * sv.y, a * sv.z};
-                    add(a, points_[i].p, zero3, zero6, as, zero9, 1);
+                    DivSums one;
+                    one.a = points_[i].area;
+                    one.s[0] = one.a * sv.x, one.s[1] = one.a * sv.y, one.s[2] = one.a * sv.z;
+                    one.count = 1;
+                    add(one, points_[i].p);
                 }
             } else {
                 for (int j = nd.child; j < nd.child + nd.children; ++j) {
                     const DivSums& C = div_[j][ch];
                     if (C.count == 0) continue;
-                    add(C.a, curve_[j].centre, C.m, C.M, C.s, C.N, C.count);
+                    add(C, curve_[j].centre);
                 }
             }
         }

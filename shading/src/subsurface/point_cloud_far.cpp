@@ -650,22 +650,8 @@ Rgb PointCloud::shift_divergence_about(const Vec3& x, const Vec3& nx, double h) 
             for (int ch = 0; ch < 3; ++ch) {
                 const DivSums& D = div_[k][ch];
                 if (D.count == 0) continue;
-                // in 3-D about x (projected across x's plane once, at the end): sum a (p - x) =
-                // m + a d, sum a (p - x)(p - x)^T = M + m d^T + d m^T + a d d^T, sum a s (p -
-                // x)^T = N + s d^T
-                DivSums& T = about_x[ch];
-                T.a += w * D.a;
-                for (int i = 0; i < 3; ++i) {
-                    T.m[i] += w * (D.m[i] + D.a * d[i]);
-                    T.s[i] += w * D.s[i];
-                }
-                static constexpr int kI[6] = {0, 1, 2, 0, 0, 1}, kJ[6] = {0, 1, 2, 1, 2, 2};
-                for (int e = 0; e < 6; ++e) {
-                    const int i = kI[e], j = kJ[e];
-                    T.M[e] += w * (D.M[e] + D.m[i] * d[j] + d[i] * D.m[j] + D.a * d[i] * d[j]);
-                }
-                for (int i = 0; i < 3; ++i)
-                    for (int j = 0; j < 3; ++j) T.N[3 * i + j] += w * (D.N[3 * i + j] + D.s[i] * d[j]);
+                // in 3-D about x (projected across x's plane once, at the end)
+                about_x[ch].add_moved(D, d, w);
                 count[ch] += D.count;
             }
         },

@@ -289,6 +289,24 @@ private:
     struct DivSums {
         double a = 0, m[3] = {0, 0, 0}, M[6] = {0, 0, 0, 0, 0, 0}, s[3] = {0, 0, 0}, N[9] = {};
         int count = 0;
+        // += w times D's sums moved from D's centre to the point d before it (d = D's centre
+        // - this one's): sum a (q + d) = m + a d, sum a (q + d)(q + d)^T = M + m d^T + d m^T +
+        // a d d^T, sum a s (q + d)^T = N + s d^T.
+        void add_moved(const DivSums& D, const double d[3], double w) {
+            static constexpr int kI[6] = {0, 1, 2, 0, 0, 1}, kJ[6] = {0, 1, 2, 1, 2, 2};
+            a += w * D.a;
+            for (int i = 0; i < 3; ++i) {
+                m[i] += w * (D.m[i] + D.a * d[i]);
+                s[i] += w * D.s[i];
+            }
+            for (int e = 0; e < 6; ++e) {
+                const int i = kI[e], j = kJ[e];
+                M[e] += w * (D.M[e] + D.m[i] * d[j] + d[i] * D.m[j] + D.a * d[i] * d[j]);
+            }
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < 3; ++j) N[3 * i + j] += w * (D.N[3 * i + j] + D.s[i] * d[j]);
+            count += D.count;
+        }
     };
     std::vector<std::array<DivSums, 3>> div_;
     void build_div_sums();
