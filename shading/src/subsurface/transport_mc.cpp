@@ -209,6 +209,9 @@ public:
         Scratch sc;
         sc.pw.resize(K_);
         for (auto& v : sc.ps) v.assign(E_ * K_, 0.0);
+        const std::size_t J = ne_mu_.size(), orders = t.face[0][0].ne.size() / std::max<std::size_t>(1, J);
+        for (auto& v : sc.ne) v.assign(orders * J * E_, 0.0);
+        sc.ne_band.assign(orders * std::size_t(B_) * J * E_, 0.0);
         for (std::uint64_t i = job.first; i < job.first + job.count; ++i) {
             for (auto& v : sc.ps) std::fill(v.begin(), v.end(), 0.0);
             // (the bands' azimuths: a stream of their own, streams 3 and 4)
@@ -221,12 +224,28 @@ public:
                         t.face[f][e].multi_sq[k] += sqr(sc.ps[2 * f + 1][e * K_ + k]);
                     }
         }
+        // The next-event sums to the tally's per-eta layout (its cells are 0: a copy is the
+        // same sum, added in the same order).
+        for (int f = 0; f < 2; ++f)
+            for (std::size_t e = 0; e < E_; ++e) {
+                std::vector<double>& ne = t.face[f][e].ne;
+                for (std::size_t i = 0; i < ne.size(); ++i) ne[i] = sc.ne[f][i * E_ + e];
+            }
+        for (std::size_t e = 0; e < E_; ++e) {
+            std::vector<double>& nb = t.face[0][e].ne_band;
+            for (std::size_t i = 0; i < nb.size(); ++i) nb[i] = sc.ne_band[i * E_ + e];
+        }
     }
 
 private:
     struct Scratch {
         std::vector<double> pw;       // alpha_k^n
         std::vector<double> ps[4];    // per-photon sums: top single, top multi, bottom single, bottom multi [e * K + k]
+        // The job's next-event sums, every eta of a cell side by side: ne[face][(n * J + j) * E + e]
+        // and ne_band[((n * B + b) * J + j) * E + e]. One event writes every eta's share of a
+        // cell; side by side they share a cache line (per eta, the tally's layout, each eta's row
+        // lay megabytes from the next: most of a g 0.9 build's time went to those misses).
+        std::vector<double> ne[2], ne_band;
     };
 
     // alpha_k^n for every albedo (pw), highest albedo last; returns the lowest k worth adding.
@@ -307,8 +326,8 @@ private:
             }
             if (n >= 2 && n <= s_.radiance_orders) {
                 double att[32];  // the top face's exp(-z / mu_j), for the bands
-                next_event(t, n, z, ux, uz, w, att);
-                if (B_ > 0 && z < 40.0) next_event_bands(t, side, n, x, y, z, ux, uy, uz, w, att);
+                next_event(sc, n, z, ux, uz, w, att);
+                if (B_ > 0 && z < 40.0) next_event_bands(sc, side, n, x, y, z, ux, uy, uz, w, att);
             }
             // Henyey-Greenstein deflection about the current direction.
             const double xi = rng.uniform();
@@ -345,7 +364,7 @@ private:
     // inside cosines mu_j: p(u . w_j) exp(-distance / mu_j) / mu_j, per eta times its weight. The
     // azimuth of w_j is fixed (phi = 0): at normal incidence the expectation does not depend on it.
     // att: the top face's exp(-z / mu_j) (where z < 40).
-    void next_event(Tally& t, long n, double z, double ux, double uz, const double* w, double* att) const {
+    void next_event(Scratch& sc, long n, double z, double ux, double uz, const double* w, double* att) const {
         const int J = int(ne_mu_.size());
         const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
         const double g = s_.g;
@@ -361,11 +380,10 @@ private:
                 if (face == 0) att[j] = a;
                 q[j] = f * hg_norm_ / (den * std::sqrt(den)) * a * ne_inv_mu_[j];
             }
-            for (std::size_t e = 0; e < E_; ++e) {
-                if (!(w[e] > 0)) continue;
-                double* b = t.face[face][e].ne.data() + std::size_t(n) * J;
-                for (int j = 0; j < J; ++j) b[j] += w[e] * q[j];
-            }
+            double* b = sc.ne[face].data() + std::size_t(n) * J * E_;
+            // (an eta whose weight is 0 adds +0: the same bits, and a loop without a branch)
+            for (int j = 0; j < J; ++j)
+                for (std::size_t e = 0; e < E_; ++e) b[j * E_ + e] += w[e] * q[j];
         }
     }
 
@@ -379,7 +397,7 @@ private:
     // next_event's estimate for the top face, at an azimuth phi of its own (stream `side`), each
     // node's radiance tallied in the band where its direction w_j = (sin_j cos phi, sin_j sin phi,
     // -mu_j) meets the face: at (x, y) + z tan_j (cos phi, sin phi).
-    void next_event_bands(Tally& t, Rng& side, long n, double x, double y, double z, double ux, double uy, double uz,
+    void next_event_bands(Scratch& sc, Rng& side, long n, double x, double y, double z, double ux, double uy, double uz,
                           const double* w, const double* att) const {
         const int J = int(ne_mu_.size());
         const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
@@ -396,10 +414,10 @@ private:
             const double o = z * ne_tan_[j], px = x + o * cp, py = y + o * sp;
             band[j] = band_of(px * px + py * py);
         }
-        for (std::size_t e = 0; e < E_; ++e) {
-            if (!(w[e] > 0)) continue;
-            double* base = t.face[0][e].ne_band.data() + std::size_t(n) * B_ * J;
-            for (int j = 0; j < J; ++j) base[band[j] * J + j] += w[e] * q[j];
+        double* base = sc.ne_band.data() + std::size_t(n) * B_ * J * E_;
+        for (int j = 0; j < J; ++j) {
+            double* cell = base + std::size_t(band[j] * J + j) * E_;
+            for (std::size_t e = 0; e < E_; ++e) cell[e] += w[e] * q[j];
         }
     }
 
