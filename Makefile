@@ -39,8 +39,18 @@ UPSTREAM_FILES := $(CACHE)/povray_3.7.0.10.orig.tar.gz $(CACHE)/povray_3.7.0.10-
 # (GNU time -v) checks the harness's memory measurement; groff-base renders and checks
 # the man pages (tests/test_man_pages.py); strace shows that images are written whole
 # (tests/test_write_failures.py).
+# ccache serves a fresh clone's compiles from this machine's earlier ones (below).
 APT_PACKAGES := build-essential dpkg-dev devscripts quilt cmake ninja-build libgtest-dev \
-                python3 python3-venv povray povray-includes time groff-base strace
+                python3 python3-venv povray povray-includes time groff-base strace ccache
+
+# Compiles go through ccache where it is installed (it is in APT_PACKAGES; POV-Ray's CXX is
+# mk/ccache/g++, which looks for it at each compile, so installing it later changes nothing
+# else). The objects do not depend on where the tree lies (-ffile-prefix-map, as dpkg-buildflags'
+# fixfilepath does for Debian's own builds), so ccache may share them between clones: paths
+# under TOP are hashed relative to it and the working directory is left out of the hash.
+# ccache's output is the compiler's, byte for byte.
+export CCACHE_BASEDIR := $(TOP)
+export CCACHE_NOHASHDIR := 1
 
 # POV-Ray's configure: --disable-optimiz stops it adding fast-math and -march=native flags.
 # The flags are Debian's for this package (debian/rules: `dpkg-buildflags` with
@@ -48,10 +58,11 @@ APT_PACKAGES := build-essential dpkg-dev devscripts quilt cmake ninja-build libg
 # so the fork and the stock binary are compiled alike: same speed, same rounding (the stock
 # guard compares them to the bit). -fno-fast-math only states what Debian's rules say.
 # The shading library reaches the fork through CPPFLAGS/LDFLAGS/LIBS, not by copying sources.
-POV_CXXFLAGS := -g -O2 -fstack-protector-strong -Wformat -Werror=format-security -O3 -fno-fast-math
+POV_CXXFLAGS := -g -O2 -ffile-prefix-map=$(TOP)=. -fstack-protector-strong -Wformat -Werror=format-security -O3 -fno-fast-math
 POV_CPPFLAGS := -Wdate-time -D_FORTIFY_SOURCE=2
 POV_LDFLAGS  := -Wl,-z,relro -Wl,-z,now
 POV_CONFIGURE_ARGS := --disable-optimiz --disable-strip --with-boost-thread=boost_thread \
+	CXX="$(TOP)/mk/ccache/g++" \
 	--sysconfdir=$(TOP)/$(CONFDIR) \
 	COMPILED_BY="povray-brdf $(FORK_VERSION) (measured-BRDF and dipole subsurface fork)" \
 	CXXFLAGS="$(POV_CXXFLAGS)" \
@@ -173,10 +184,13 @@ SS_SLAB_D := 0.0625,0.0787451,0.0992126,0.125,0.15749,0.198425,0.25,0.31498,0.39
 SS_SLAB_D := $(SS_SLAB_D),1.25992,1.5874,2,2.51984,3.1748,4,5.03968,6.3496,8,10.0794,12.6992,16,20.1587,25.3984
 SS_SLAB_D := $(SS_SLAB_D),32,40.3175,50.7968,64
 SS_SLAB_ARGS := --g 0 --eta 1,1.1,1.2,1.3,1.33,1.4,1.5,1.6,1.8,2 --photons 40000 --short-photons 400000 --thickness $(SS_SLAB_D)
+# Both go through a cache this machine's clones share (mk/ss-tables.sh: keyed by the sstool
+# binary's and the options' sha256, checked whole before use); SS_CACHE= turns it off.
+SS_CACHE ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/povray-brdf/ss-tables
 brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt and the exact subsurface profiles (half-space and slabs) into build/brdf_data
 	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)
-	$(SSTOOL) build --if-stale --threads $(JOBS) -o $(SS_PROFILES)
-	$(SSTOOL) build --if-stale --threads $(JOBS) $(SS_SLAB_ARGS) -o $(SS_SLABS)
+	bash mk/ss-tables.sh $(SSTOOL) '$(SS_CACHE)' $(SS_PROFILES) --threads $(JOBS)
+	bash mk/ss-tables.sh $(SSTOOL) '$(SS_CACHE)' $(SS_SLABS) --threads $(JOBS) $(SS_SLAB_ARGS)
 
 # ---------------------------------------------------------------- python harness
 # The harness is a package (pyproject.toml: pinned dependencies, console scripts); the venv
