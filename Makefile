@@ -184,8 +184,8 @@ SS_SLAB_D := 0.0625,0.0787451,0.0992126,0.125,0.15749,0.198425,0.25,0.31498,0.39
 SS_SLAB_D := $(SS_SLAB_D),1.25992,1.5874,2,2.51984,3.1748,4,5.03968,6.3496,8,10.0794,12.6992,16,20.1587,25.3984
 SS_SLAB_D := $(SS_SLAB_D),32,40.3175,50.7968,64
 SS_SLAB_ARGS := --g 0 --eta 1,1.1,1.2,1.3,1.33,1.4,1.5,1.6,1.8,2 --photons 40000 --short-photons 400000 --thickness $(SS_SLAB_D)
-# Both go through a cache this machine's clones share (mk/ss-tables.sh: keyed by the sstool
-# binary's and the options' sha256, checked whole before use); SS_CACHE= turns it off.
+# Both go through a cache this machine's clones share (mk/ss-tables.sh: keyed by the sha256 of
+# sstool's code and data and of the options, checked whole before use); SS_CACHE= turns it off.
 SS_CACHE ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/povray-brdf/ss-tables
 brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt and the exact subsurface profiles (half-space and slabs) into build/brdf_data
 	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)

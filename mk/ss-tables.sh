@@ -6,9 +6,10 @@
 # Usage: mk/ss-tables.sh SSTOOL CACHE_DIR OUT [sstool build options...]
 #   CACHE_DIR empty: no cache (plain `sstool build --if-stale`).
 #
-# The key is the sha256 of the sstool program (code and data) and of the options. The build is deterministic
-# (fixed Monte Carlo chunks and seeds, independent of --threads, which is left out of the key)
-# and the binary is path-independent (-ffile-prefix-map), so one key means one file. A cached
+# The key is the sha256 of the sstool program (code and data) and of the options. The build is
+# deterministic (fixed Monte Carlo chunks and seeds, independent of --threads, which is left out
+# of the key) and the code and data do not depend on the clone's path (-ffile-prefix-map), so
+# one key means one file. A cached
 # file is copied in (temporary name, then rename) and then checked whole by `sstool build
 # --if-stale` itself: the loader verifies the checksum over every byte and the structure, and
 # the generator version and settings must match, or it is rebuilt. Only a file this run built
