@@ -580,7 +580,8 @@ double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h)
     // Each point for its own area (a quadrature over the surface, whatever the sampling's
     // density); least squares of (nx - n_i).v - H r2 with weights A w / r2: its normal equation
     // is sum A w (nx - n_i).v = H sum A w r2, v = x - p_i, w the window's 1 - w(r).
-    // A node small against the window's ramp (under a quarter of the spacing across) whose
+    // A node small against the window's ramp (under half the spacing across; the ramp is two
+    // spacings wide, and the centre's weight errs to second order in the node's size) whose
     // normals all face nx's side is taken whole from its sums about its centroid c (curve_),
     // at the weight of c: sum A (nx - n_i).v = nx.(A (x - c)) - n.(x - c) + q and sum A r2 =
     // A |x - c|^2 + v. A refined cloud (a shadow edge 5 levels deep) holds 1024 samples per
@@ -588,7 +589,7 @@ double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h)
     // either way: H = 1/R exactly.
     double num = 0, den = 0;
     window_sum(
-        x, nx, h, 0.25, 0.0,
+        x, nx, h, 0.5, 0.0,
         [&](int k, const Vec3& cx, double w) {
             const CurveSums& cs = curve_[k];
             // v = x - c = -cx
