@@ -76,12 +76,12 @@ def payload_offset(data: bytes) -> int:
 # byte position classes: (name, offset in the file, the offset the fork's message names)
 CLASSES = [
     ("magic", lambda d: 0, "offset 0: expected the magic"),
-    ("format version", lambda d: 8, "offset 8: expected format version 5"),
+    ("format version", lambda d: 8, "offset 8: expected format version 6"),
     ("payload offset field", lambda d: 12, "offset 24: expected the file's checksum"),
     ("generator version", lambda d: 32, "offset 24: expected the file's checksum"),
     ("byte 60 (radial nodes per decade)", lambda d: 60, "offset 24: expected the file's checksum"),
     ("photons", lambda d: 128, "offset 24: expected the file's checksum"),
-    ("g axis", lambda d: 160 + 7, "offset 24: expected the file's checksum"),
+    ("g axis", lambda d: 168 + 7, "offset 24: expected the file's checksum"),
     ("payload", lambda d: payload_offset(d) + 4 * 50 + 2, "offset 24: expected the file's checksum"),
     ("last byte", lambda d: len(d) - 1, "offset 24: expected the file's checksum"),
     ("checksum", lambda d: 27, "offset 24: expected the file's checksum"),
@@ -126,7 +126,7 @@ def test_foreign_table_is_rebuilt(fork, good, good_render, tmp_path):
     assert foreign != good.read_bytes()
     log = build(path)
     print(log.strip())
-    assert log.strip() == (f"sstool build: warning: {path} was built by generator 5 with other settings than asked "
+    assert log.strip() == (f"sstool build: warning: {path} was built by generator 6 with other settings than asked "
                            "for: not used; rebuilding")
     assert path.read_bytes() == good.read_bytes()
     np.testing.assert_array_equal(render(fork, path).image, good_render)

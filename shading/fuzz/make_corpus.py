@@ -180,7 +180,7 @@ def main(brdftool, out):
     put(mdir, "bad-dim-standard-short.binary", struct.pack("<3i", 90, 90, 180) + ok[12:])
     put(mdir, "bad-inf.binary", merl((2, 2, 4), lambda c, k: math.inf if k == 5 else 1.0))
 
-    # Exact-profile tables (.ssp, format 5): checksum of the whole file (its own 8 bytes read as
+    # Exact-profile tables (.ssp, format 6): checksum of the whole file (its own 8 bytes read as
     # zeros) at 24..31, payload offset at 12..15.
     sdir = os.path.join(out, "ssp")
     os.makedirs(sdir, exist_ok=True)
@@ -200,7 +200,7 @@ def main(brdftool, out):
 
     sbad = {
         **broken_framing(sb, 100, 5, b"PVSSPROX"),
-        "truncated-axes": sb[:170],
+        "truncated-axes": sb[:178],
         "version-2": sp("<I", 8, 2, fix=True),
         "flags-unknown": sp("<I", 36, 4, fix=True),
         "flags-slab-one-face": sp("<I", 36, 1, fix=True),
@@ -212,14 +212,17 @@ def main(brdftool, out):
         "rho0-nan": sp("<d", 80, math.nan, fix=True),
         "u-step-zero": sp("<d", 96, 0.0, fix=True),
         "radiance-orders-huge": sp("<d", 152, 1e9, fix=True),
-        "g-out-of-range": sp("<d", 160, 1.5, fix=True),
+        "g-out-of-range": sp("<d", 168, 1.5, fix=True),
+        "oblique-azimuths-1": sp("<I", 160, 1, fix=True),
+        "oblique-in-slabs": patcher(sgood["slabs"], ssp_fix)("<I", 160, 7, fix=True),
+        "oblique-negative": sp("<f", len(sb) - 4, -1.0, fix=True),
         "payload-offset": sp("<I", 12, soff + 16, fix=True),
         "payload-bytes": sp("<Q", 16, 1 << 60, fix=True),
         "checksum-wrong": sp("<Q", 24, 0),
         "header-byte-60": sp("<I", 60, 11),  # radial nodes per decade, checksum left: format 2 missed it
         "total-nan": sp("<f", soff, math.nan, fix=True),
         "total-negative": sp("<f", soff, -0.5, fix=True),
-        "band-ratio-negative": sp("<f", len(sb) - 4, -1.0, fix=True),
+        "band-ratio-negative": sp("<f", len(sb) - 4 * (1 + 5 * 7 * 8), -1.0, fix=True),
         "angle-huge": sp("<f", soff + 24, 1e30, fix=True),
     }
     for name, data in sbad.items():

@@ -425,3 +425,114 @@ TEST(TransportMc, ExitDistributionPerDistanceBandMatchesAnAnalogWalk) {
     EXPECT_EQ(p.top[0].radiance, f.radiance);
     EXPECT_TRUE(p.top[0].band_multi.empty());
 }
+
+namespace {
+
+// An analog walk for oblique incidence, sharing nothing with transport_mc.cpp: Henyey-Greenstein
+// scattering (sampled here by its own inversion, the new direction built from an orthonormal
+// frame about the old) in the index-matched half-space z > 0, absorption by survival with
+// probability alpha, a beam entering at the origin along (sin, 0, cos) of inside cosine cos_in.
+// Of the exits after two or more scatterings: their number, and per bin (exit cosine in
+// [c_lo, c_hi], azimuth |phi| from the beam's forward direction +x within half_width of phi_b)
+// the number leaving there.
+struct AnalogBin {
+    double c_lo, c_hi, phi, half_width;
+    double count = 0;
+};
+double analog_oblique(double alpha, double g, double cos_in, int photons, std::vector<AnalogBin>* bins) {
+    Xorshift uniform(0x9e3779b97f4a7c15ULL);
+    const double kTwoPi = 6.283185307179586, kPiHere = 3.141592653589793;
+    double all = 0;
+    for (int i = 0; i < photons; ++i) {
+        double x = 0, y = 0, z = 0, ux = std::sqrt(1 - cos_in * cos_in), uy = 0, uz = cos_in;
+        int order = 0;
+        for (;;) {
+            const double t = -std::log(uniform());
+            if (z + t * uz < 0) {
+                if (order >= 2) {
+                    all += 1;
+                    const double mu = -uz, phi = std::fabs(std::atan2(uy, ux));
+                    for (AnalogBin& b : *bins) {
+                        double dphi = std::fabs(phi - b.phi);
+                        if (mu >= b.c_lo && mu <= b.c_hi && dphi <= b.half_width) b.count += 1;
+                    }
+                }
+                break;
+            }
+            x += t * ux;
+            y += t * uy;
+            z += t * uz;
+            if (uniform() >= alpha) break;
+            ++order;
+            const double xi = uniform();
+            const double s = (1 - g * g) / (1 - g + 2 * g * xi);
+            const double ct = std::clamp((1 + g * g - s * s) / (2 * g), -1.0, 1.0), st = std::sqrt(1 - ct * ct);
+            const double phi = kTwoPi * uniform();
+            // frame about u: a = any unit vector not along u, e1 = normalize(a x u), e2 = u x e1
+            const double ax = std::fabs(ux) < 0.9 ? 1.0 : 0.0, ay = 1.0 - ax;
+            double e1x = ay * uz, e1y = -ax * uz, e1z = ax * uy - ay * ux;
+            const double l1 = std::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
+            e1x /= l1, e1y /= l1, e1z /= l1;
+            const double e2x = uy * e1z - uz * e1y, e2y = uz * e1x - ux * e1z, e2z = ux * e1y - uy * e1x;
+            const double c = std::cos(phi) * st, d = std::sin(phi) * st;
+            const double nx = ct * ux + c * e1x + d * e2x, ny = ct * uy + c * e1y + d * e2y, nz = ct * uz + c * e1z + d * e2z;
+            const double ln = std::sqrt(nx * nx + ny * ny + nz * nz);
+            ux = nx / ln, uy = ny / ln, uz = nz / ln;
+        }
+    }
+    (void)kPiHere;
+    return all;
+}
+
+}  // namespace
+
+// The oblique exit distribution against the analog walk: 4 combined standard errors plus this
+// fraction (L's curvature across a bin).
+constexpr double kObliqueSlack = 0.03;
+
+TEST(TransportMc, ObliqueExitDistributionMatchesAnAnalogWalk) {
+    // Light entering 60 degrees from the normal in a forward-scattering medium (g 0.7, alpha
+    // 0.9) leaves more toward where it was going: pi L / M per azimuth (radiance_azimuth, every
+    // order: radiance_orders far beyond the last that counts) against the analog walk's exits in
+    // bins of exit cosine and azimuth, pi L / M = pi share / (azimuth width x (c_hi^2 - c_lo^2)
+    // / 2). Tolerance stated before measuring: 4 combined standard errors + 3 %. Forward must
+    // exceed backward (the point of it), and the azimuthal mean must imply the exits' own total.
+    const double kPi = 3.141592653589793;
+    McSettings s = base(0.7, {1.0}, {0.9}, 100000);
+    s.cos_inside = 0.5;
+    s.radial = false;
+    s.radiance_orders = 2000;
+    s.oblique_azimuths = 7;
+    s.high_from = 20;
+    const McResult r = run_transport_mc(s);
+    const McFace& f = r.top[0];
+    const int A = 7, J = s.radiance_nodes;
+    ASSERT_EQ(int(f.radiance_azimuth.size()), A * J);
+    ASSERT_TRUE(f.radiance.empty());
+    ASSERT_EQ(f.multi_high.size(), std::size_t(1));
+    EXPECT_GT(f.multi_high[0], 0.0);
+    EXPECT_LT(f.multi_high[0], f.multi[0]);
+    const std::vector<double> mu = s.radiance_cosines();
+    const int j = J - 4;  // cos 0.655
+    const double hw = 12.0 * kPi / 180.0;
+    std::vector<AnalogBin> bins;
+    for (int a : {0, 3, 6}) bins.push_back({mu[j] - 0.03, mu[j] + 0.03, kPi * a / (A - 1), hw});
+    const double all = analog_oblique(0.9, 0.7, 0.5, 2000000, &bins);
+    std::vector<double> got;
+    int i = 0;
+    for (int a : {0, 3, 6}) {
+        const AnalogBin& b = bins[std::size_t(i++)];
+        const double width = (a == 0 || a == A - 1) ? 2 * hw : 4 * hw;  // |phi| folds both sides
+        const double analog = kPi * (b.count / all) / (width * 0.5 * (b.c_hi * b.c_hi - b.c_lo * b.c_lo));
+        const double se = analog / std::sqrt(std::max(1.0, b.count));
+        const double mc = kPi * f.radiance_azimuth[std::size_t(a) * J + j] / f.multi[0];
+        got.push_back(mc);
+        std::printf("azimuth %3.0f deg, cos %.3f: pi L / M transport_mc %.4f, analog %.4f +- %.4f\n", 180.0 * a / (A - 1),
+                    mu[j], mc, analog, se);
+        EXPECT_NEAR(mc, analog, 4 * se + kObliqueSlack * analog) << "azimuth node " << a;
+    }
+    EXPECT_GT(got[0], 1.2 * got[2]);
+    // toward the normal every azimuth is the same direction
+    for (int a = 1; a < A; ++a)
+        EXPECT_NEAR(f.radiance_azimuth[std::size_t(a) * J + J - 1], f.radiance_azimuth[J - 1], 0.03 * f.radiance_azimuth[J - 1]);
+}

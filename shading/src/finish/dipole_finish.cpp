@@ -309,7 +309,17 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
                                                                 : std::numeric_limits<double>::infinity();
     if (thickness < subsurface.slab_threshold() && subsurface.slab_single_at_lookup())
         single += slab_single_scatter(subsurface, object, x, n, to_eye, thickness);
-    return subsurface.radiance(*cloud, x, n, to_eye, e, thickness) + single;
+    // the exit distribution for the lights' incidence at x (their directions only: no shadow rays)
+    Rgb exit_ratio(1.0);
+    if (subsurface.oblique_exits()) {
+        std::vector<Vec3> to_lights;
+        for (int i = 0, lights = object.light_count(); i < lights; i++) {
+            Vec3 to_light;
+            if (object.light_direction(i, x, &to_light)) to_lights.push_back(to_light);
+        }
+        exit_ratio = subsurface.incidence_exit_ratio(n, to_eye, to_lights.data(), to_lights.size());
+    }
+    return subsurface.radiance(*cloud, x, n, to_eye, e, thickness, exit_ratio) + single;
 }
 
 std::vector<std::string> finish_statistics() {

@@ -120,6 +120,19 @@ Rgb ExactProfile::exit_factor(double cos_o) const {
     return v;
 }
 
+Rgb ExactProfile::exit_factor_oblique(double cos_i, double cos_o, double cos_phi) const {
+    Rgb v;
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c]) v[c] = ch_[c]->exit_factor_oblique(cos_i, cos_o, cos_phi);
+    return v;
+}
+
+bool ExactProfile::oblique_exits() const {
+    for (int c = 0; c < 3; ++c)
+        if (ch_[c] && ch_[c]->oblique_exits()) return true;
+    return false;
+}
+
 void ExactProfile::build_exit_weights() {
     // The channels' band nodes (one set of inside cosines: every channel reads the same tables).
     int J = 0;

@@ -136,6 +136,11 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     band_rho_.assign(std::size_t(B), 0.0);
     band_ratio_.assign(std::size_t(B) * s.angle_nodes, 0.0);
     band_nodes_ = std::size_t(s.angle_nodes);
+    // Oblique exits (semi-infinite reflection only): as angle_, per oblique inside cosine and azimuth.
+    const int A = thickness == kInf && face == 0 ? s.oblique_azimuths : 0;
+    oblique_azimuths_ = A;
+    oblique_.assign(A > 0 ? std::size_t(nci - 1) * A * 129 : 0, 0.0);
+    std::vector<double> slice(std::size_t(s.angle_nodes));
     std::vector<ExitSum> exit_sums;
     for (auto [ie, w2] : we) exit_sums.emplace_back(s.angle_nodes, s.eta[ie]);
     for (auto [ig, w1] : wg) {
@@ -170,6 +175,12 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_basis.value(r.angle, std::size_t(j));
                     if (B > 0 && (r.band_rho.size() != std::size_t(B) || r.band_ratio.size() != band_ratio_.size()))
                         throw std::logic_error("exact profile: a record's distance bands differ from the tables' count");
+                    if (A > 0 && r.oblique.size() != std::size_t(nci - 1) * A * s.angle_nodes)
+                        throw std::logic_error("exact profile: a record's oblique exits differ from the tables' count");
+                    for (std::size_t ia = 0; ia < std::size_t(A > 0 ? (nci - 1) * A : 0); ++ia) {
+                        std::copy_n(r.oblique.begin() + std::ptrdiff_t(ia * s.angle_nodes), s.angle_nodes, slice.begin());
+                        for (int j = 0; j <= 128; ++j) oblique_[ia * 129 + std::size_t(j)] += ww * angle_basis.value(slice, std::size_t(j));
+                    }
                     for (int b = 0; b < B; ++b) band_rho_[b] += ww * r.band_rho[b];
                     for (std::size_t i = 0; i < band_ratio_.size(); ++i) band_ratio_[i] += ww * r.band_ratio[i];
                     // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of the stored samples
@@ -188,6 +199,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     for (double& v : incidence_) v = std::max(0.0, v);
     for (double& v : shift_) v = std::max(0.0, v);
     for (double& v : band_ratio_) v = std::max(0.0, v);
+    for (double& v : oblique_) v = std::max(0.0, v);
     // mean distances: increasing and > 0 (a mix of records keeps them so but for rounding)
     for (std::size_t b = 0; b < band_rho_.size(); ++b)
         band_rho_[b] = std::max(band_rho_[b], b ? band_rho_[b - 1] * (1 + 1e-9) : 1e-9);
@@ -314,17 +326,56 @@ double ChannelProfile::radius_containing(double fraction) const {
     return hi;
 }
 
+double ChannelProfile::inside_index(double cos_o) const {
+    const double mu_c = critical_cos(eta_);
+    const double mi = std::sqrt(std::max(0.0, 1.0 - (1.0 - cos_o * cos_o) / (eta_ * eta_)));
+    return std::clamp((mi - mu_c) / (1 - mu_c) * 128.0, 0.0, 128.0);
+}
+
 double ChannelProfile::exit_factor(double cos_o) const {
     if (!(cos_o > 0)) return 0.0;
     cos_o = std::min(cos_o, 1.0);
     const double ft = 1.0 - fresnel_dielectric(cos_o, eta_);
     if (!(ft > 0)) return 0.0;
-    const double mu_c = critical_cos(eta_);
-    const double mi = std::sqrt(std::max(0.0, 1.0 - (1.0 - cos_o * cos_o) / (eta_ * eta_)));
-    const double x = std::clamp((mi - mu_c) / (1 - mu_c) * 128.0, 0.0, 128.0);
+    const double x = inside_index(cos_o);
     const int j = std::min(127, int(x));
     const double i = angle_[j] + (angle_[j + 1] - angle_[j]) * (x - j);
     return ft * i * angle_norm_;
+}
+
+double ChannelProfile::exit_factor_oblique(double cos_i, double cos_o, double cos_phi) const {
+    const int n = int(ci_.size());
+    if (oblique_.empty() || n < 2) return exit_factor(cos_o);
+    if (!(cos_o > 0)) return 0.0;
+    cos_o = std::min(cos_o, 1.0);
+    const double ft = 1.0 - fresnel_dielectric(cos_o, eta_);
+    if (!(ft > 0)) return 0.0;
+    // the entering beam's inside cosine (Snell), and its place among the tables' (the last 1)
+    const double c = std::clamp(cos_i, 0.0, 1.0);
+    const double ci = std::sqrt(std::max(0.0, 1.0 - (1.0 - c * c) / (eta_ * eta_)));
+    if (ci >= ci_.back()) return exit_factor(cos_o);
+    int i = 0;
+    double f = 0;
+    if (ci > ci_.front()) {
+        i = std::clamp(int(std::upper_bound(ci_.begin(), ci_.end(), ci) - ci_.begin()) - 1, 0, n - 2);
+        f = (ci - ci_[i]) / (ci_[i + 1] - ci_[i]);
+    }
+    const double x = inside_index(cos_o);
+    const int j = std::min(127, int(x));
+    const double fx = x - j;
+    const int A = oblique_azimuths_;
+    const double t = std::acos(std::clamp(cos_phi, -1.0, 1.0)) / kPi * (A - 1);
+    const int a = std::min(A - 2, int(t));
+    const double fa = t - a;
+    auto at = [&](int node) {  // inside radiance of inside-cosine node `node` at (x, azimuth)
+        if (node == n - 1) return angle_[j] + (angle_[j + 1] - angle_[j]) * fx;
+        const double* p0 = &oblique_[(std::size_t(node) * A + a) * 129];
+        const double* p1 = p0 + 129;
+        const double v0 = p0[j] + (p0[j + 1] - p0[j]) * fx, v1 = p1[j] + (p1[j + 1] - p1[j]) * fx;
+        return v0 + (v1 - v0) * fa;
+    };
+    const double v = f > 0 ? at(i) * (1 - f) + at(i + 1) * f : at(i);
+    return ft * v * angle_norm_;
 }
 
 double ChannelProfile::interpolate_inside(const std::vector<double>& v, double cos_o) const {

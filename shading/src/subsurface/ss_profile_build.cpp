@@ -35,6 +35,7 @@ struct Diagnostics {
     int dropped_tails = 0;           // tails whose amplitude would overflow the file (noise-only faces)
     int noisy_angles = 0;            // faces whose angular samples were normalised by their own flux
     int borrowed_bands = 0;          // exit-distance bands with too few exits (the band inside's ratios)
+    double worst_oblique_flux = 0;   // as worst_radiance_flux, for the oblique exit distributions
 };
 
 // The high orders' inside radiance I(mu) = c0 + c1 mu + c2 mu^2: fitted to their arrivals'
@@ -357,6 +358,41 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
     }
 }
 
+// The exit distribution of light entering at the oblique run's inside cosine (index ic), per
+// azimuth: the orders 2 .. high_from from the oblique run's own estimate (f.radiance_azimuth),
+// the higher ones as the normal run's (its next-event radiance above high_from and the fitted
+// histogram above radiance_orders) times the oblique run's share of such exits over the normal
+// run's. Stored as pi I / M with M the oblique run's own multiple-scattering exitance, as
+// `angle` is; where the exitance the samples imply (their azimuthal mean) differs from it by
+// more than a factor 2, by that (as process_face). DIPOLE.md 10.3.
+void oblique_exits(const McFace& normal, const McSettings& mc, const McFace& f, int k, double eta, int ic, int A,
+                   FaceRecord& rec, Diagnostics& diag) {
+    const std::vector<double> nodes = mc.radiance_cosines();
+    const int J = int(nodes.size()), na = mc.angle_bins;
+    if (rec.oblique.empty()) rec.oblique.assign(std::size_t(rec.incidence.size() - 1) * A * J, 1.0);
+    std::vector<double> high(J, 0.0);
+    const HighOrders c = fit_high_orders(normal.arrivals.data() + std::size_t(k) * na, na);
+    for (int j = 0; j < J; ++j) high[j] = normal.radiance_high[std::size_t(k) * J + j] + c.at(nodes[j]);
+    const double share = normal.multi_high[k] > 0 ? f.multi_high[k] / normal.multi_high[k] : 0.0;
+    std::vector<double> I(std::size_t(A) * J), mean(J, 0.0);
+    for (int a = 0; a < A; ++a)
+        for (int j = 0; j < J; ++j) {
+            const double v = f.radiance_azimuth[(std::size_t(k) * A + a) * J + j] + share * high[j];
+            I[std::size_t(a) * J + j] = v;
+            // the azimuthal mean over [0, pi] (trapezoid)
+            mean[j] += v * ((a == 0 || a == A - 1) ? 0.5 : 1.0) / (A - 1);
+        }
+    const double m = f.multi[k], implied = kPi * exit_sum(mean, eta) / (eta * eta);
+    double norm = m;
+    if (m > 0 && implied > 0 && std::fabs(std::log(implied / m)) > std::log(2.0)) {
+        norm = implied;
+        ++diag.noisy_angles;
+    }
+    if (m > 1e-4 && implied > 0) diag.worst_oblique_flux = std::max(diag.worst_oblique_flux, std::fabs(implied / m - 1.0));
+    for (int i = 0; i < A * J; ++i)
+        rec.oblique[std::size_t(ic) * A * J + i] = norm > 0 ? std::clamp(kPi * I[i] / norm, 0.0, 1e6) : 1.0;
+}
+
 std::uint64_t node_seed(std::uint64_t seed, int node, int incidence) {
     std::uint64_t x = seed * 0x9e3779b97f4a7c15ULL + std::uint64_t(node) * 0xbf58476d1ce4e5b9ULL +
                       std::uint64_t(incidence + 1) * 0x94d049bb133111ebULL;
@@ -402,6 +438,8 @@ std::string ProfileBuildSettings::validate() const {
     for (std::size_t i = 0; i < exit_bands.size(); ++i)
         if (!(exit_bands[i] > (i ? exit_bands[i - 1] : 0.0) && exit_bands[i] <= 1e3))
             return "exit_bands: expected increasing edges in (0, 1000] transport mfp";
+    if (oblique_azimuths != 0 && (oblique_azimuths < 2 || oblique_azimuths > 32))
+        return "oblique_azimuths: expected 0, or 2 to 32";
     if (photons < 1 || !(short_orders >= 1) || !(roulette_order >= 1) || !(oblique_fraction > 0 && oblique_fraction <= 1))
         return "photons: expected photons >= 1, short_orders >= 1, roulette_order >= 1, oblique_fraction in (0, 1]";
     return "";
@@ -415,7 +453,8 @@ bool ProfileTables::stale(const ProfileBuildSettings& w) const {
            s.angle_bins != w.angle_bins || s.angle_nodes != w.angle_nodes || s.radiance_orders != w.radiance_orders ||
            s.photons != w.photons ||
            s.short_photons != w.short_photons || s.short_orders != w.short_orders || s.roulette_order != w.roulette_order ||
-           s.oblique_fraction != w.oblique_fraction || s.seed != w.seed || s.exit_bands != w.exit_bands;
+           s.oblique_fraction != w.oblique_fraction || s.seed != w.seed || s.exit_bands != w.exit_bands ||
+           s.oblique_azimuths != w.oblique_azimuths;
 }
 
 std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& s,
@@ -428,7 +467,11 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
     t->faces = 1;
     for (double d : s.thickness)
         if (d != kInf) t->faces = 2;
-    if (t->faces == 2) t->settings.exit_bands.clear();  // slabs: no exit-distance bands
+    if (t->faces == 2) {  // slabs: no exit-distance bands, no oblique exits
+        t->settings.exit_bands.clear();
+        t->settings.oblique_azimuths = 0;
+    }
+    const int A = t->settings.oblique_azimuths;
     t->records.resize(s.g.size() * s.eta.size() * s.thickness.size() * t->faces * s.albedos);
     std::vector<double> albedo_nodes(s.albedos);
     for (int k = 0; k < s.albedos; ++k) albedo_nodes[k] = t->albedo(k);
@@ -459,6 +502,8 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             mc.radiance_nodes = s.angle_nodes;
             if (t->faces == 1)
                 for (double e : s.exit_bands) mc.exit_bands.push_back(e / (1.0 - g));
+            // (the orders the oblique runs estimate themselves: those their short photons reach)
+            if (A > 0) mc.high_from = mc.short_orders;
             mc.seed = node_seed(s.seed, run, -1);
             const McResult normal = run_transport_mc(mc);
             Diagnostics diag;
@@ -476,7 +521,8 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             int clamped = 0;
             McSettings ob = mc;
             ob.radial = false;
-            ob.radiance_orders = 0;
+            ob.radiance_orders = A > 0 ? mc.short_orders : 0;
+            ob.oblique_azimuths = A;
             ob.exit_bands.clear();
             ob.photons = std::max<std::uint64_t>(1, std::uint64_t(double(s.photons) * s.oblique_fraction));
             ob.short_photons = std::uint64_t(double(s.short_photons) * s.oblique_fraction);
@@ -502,18 +548,20 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
                             // its light forward): 0.
                             const double mean_x = m > 0 ? f.multi_x[k] / m : 0.0;
                             rec.shift[ic] = std::clamp(mean_x * (1.0 - t->albedo(k) * g), 0.0, 100.0);
+                            if (A > 0 && face == 0)
+                                oblique_exits(normal.top[ie], normal.settings, f, k, s.eta[ie], int(ic), A, rec, diag);
                         }
             }
             if (log) {
-                char buf[520];
+                char buf[640];
                 const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - tn).count();
                 std::snprintf(buf, sizeof buf,
                               "g=%g d=%g (%zu etas): %.2f s, %.3g flights, %d threads; tail amplitude flux/fit worst %.3f, "
                               "deconvolution residual %.1e, high-order angle fit rms residual worst %.3f, angular/exit "
-                              "flux mismatch worst %.4f, incidence factors clamped %d, noise-only tails dropped %d, angular "
+                              "flux mismatch worst %.4f (oblique %.4f), incidence factors clamped %d, noise-only tails dropped %d, angular "
                               "samples normalised by their own flux %d, distance bands borrowed %d",
                               g, s.thickness[id], ne, sec, double(steps), normal.threads_used, diag.worst_tail_ratio,
-                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, clamped, diag.dropped_tails,
+                              diag.worst_deconv, diag.worst_angle_rms, diag.worst_radiance_flux, diag.worst_oblique_flux, clamped, diag.dropped_tails,
                               diag.noisy_angles, diag.borrowed_bands);
                 log(buf);
             }

@@ -27,13 +27,13 @@ using bytes::rd_u64;
 namespace {
 
 constexpr char kMagic[8] = {'P', 'V', 'S', 'S', 'P', 'R', 'O', 'F'};
-constexpr std::size_t kFixedHeader = 160;
+constexpr std::size_t kFixedHeader = 168;
 constexpr std::uint32_t kFlagTransmission = 1;
 constexpr int kFixedFields = 6;  // multi, single, ballistic, tail_k, tail_a, rho_tail
 
 int record_floats(const ProfileBuildSettings& s) {
     return kFixedFields + s.angle_nodes + 2 * int(s.cos_inside.size()) + s.bins.count +
-           s.band_count() * (1 + s.angle_nodes);
+           s.band_count() * (1 + s.angle_nodes) + (int(s.cos_inside.size()) - 1) * s.oblique_azimuths * s.angle_nodes;
 }
 
 }  // namespace
@@ -55,6 +55,7 @@ std::string ProfileTables::describe() const {
       << "\n  inside incidence cosines: " << list(s.cos_inside) << "\n  angle: " << s.angle_nodes
       << " inside-radiance samples (next-event to " << num(s.radiance_orders) << "/(1-g) events, then " << s.angle_bins
       << " bins)"
+      << "\n  oblique exits: " << (s.oblique_azimuths > 0 ? std::to_string(s.oblique_azimuths) + " azimuths" : std::string("none"))
       << "\n  exit-distance bands: " << (s.exit_bands.empty() ? std::string("none") : "edges " + list(s.exit_bands) + " transport mfp")
       << "\n  photons per node: " << s.photons << " + " << s.short_photons << " short (" << num(s.short_orders)
       << "/(1-g) events), roulette from " << num(s.roulette_order) << "/(1-g) events, oblique " << num(s.oblique_fraction)
@@ -94,6 +95,8 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
     put_u64(b, s.short_photons);                         // 136
     put_u64(b, s.seed);                                  // 144
     put_f64(b, s.radiance_orders);                       // 152
+    put_u32(b, std::uint32_t(s.oblique_azimuths));       // 160 oblique exits' azimuths (0: none)
+    put_u32(b, 0);                                       // 164 reserved
     for (double v : s.g) put_f64(b, v);
     for (double v : s.eta) put_f64(b, v);
     for (double v : s.thickness) put_f64(b, v);
@@ -109,6 +112,7 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
         for (double v : r.profile) put_f32(b, float(v));
         for (double v : r.band_rho) put_f32(b, float(v));
         for (double v : r.band_ratio) put_f32(b, float(v));
+        for (double v : r.oblique) put_f32(b, float(v));
     }
     bytes::wr_u32(b, 12, std::uint32_t(off));
     bytes::wr_u64(b, 16, b.size() - off);
@@ -185,6 +189,12 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
     if (band_edges > 15) fail(76, "expected 0 to 15 exit-distance band edges, found " + std::to_string(band_edges));
     if (band_edges > 0 && t->faces == 2) fail(76, "expected no exit-distance bands in a slab table (flags 1), found " +
                                                      std::to_string(band_edges) + " edges");
+    const std::uint32_t azimuths = rd_u32(data + 160);
+    if (azimuths == 1 || azimuths > 32) fail(160, "expected 0, or 2 to 32 oblique exit azimuths, found " + std::to_string(azimuths));
+    if (azimuths > 0 && t->faces == 2)
+        fail(160, "expected no oblique exits in a slab table (flags 1), found " + std::to_string(azimuths) + " azimuths");
+    s.oblique_azimuths = int(azimuths);
+    if (rd_u32(data + 164) != 0) fail(164, "expected 0 (reserved), found " + std::to_string(rd_u32(data + 164)));
     if (!(s.bins.rho_0 > 0 && s.bins.rho_0 < 1e3)) fail(80, "expected the first radius in (0, 1000), found " + num(s.bins.rho_0));
     // The generator's settings (the file's identity for --if-stale): ranges of ProfileBuildSettings.
     if (!(s.short_orders >= 1 && s.short_orders <= 1e6)) fail(104, "expected short orders in [1, 1e6], found " + num(s.short_orders));
@@ -291,6 +301,8 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
         for (int b = 0; b < B; ++b) r.band_rho[std::size_t(b)] = value("band distance", b, 0.0, 1e6);
         r.band_ratio.resize(std::size_t(B) * s.angle_nodes);
         for (std::size_t j = 0; j < r.band_ratio.size(); ++j) r.band_ratio[j] = value("band exit ratio", int(j), 0.0, 100.0);
+        r.oblique.resize((s.cos_inside.size() - 1) * std::size_t(s.oblique_azimuths) * s.angle_nodes);
+        for (std::size_t j = 0; j < r.oblique.size(); ++j) r.oblique[j] = value("oblique exit sample", int(j), 0.0, 1e6);
     }
     return t;
 }

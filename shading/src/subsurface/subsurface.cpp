@@ -42,6 +42,7 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
     reach_ = profile_->radius_containing(0.99);
     // Direction-aware: a profile that knows how far slanted light travels on inside.
     directional_ = settings_.directional && model_->entry_shift(0.5).max_component() > 0;
+    oblique_exits_ = settings_.oblique_exits && model_->oblique_exits();
     if (settings_.curvature) {
         const Medium& m = dipole_.medium();
         const Rgb sp = m.sigma_s_prime(), st = sp + m.sigma_a;  // 1/mm
@@ -335,8 +336,38 @@ void check_resolved(const PointCloud& cloud, const Vec3& x, double h, const Rgb&
 
 }  // namespace
 
+Rgb Subsurface::incidence_exit_ratio(const Vec3& n, const Vec3& to_eye, const Vec3* to_lights, std::size_t count) const {
+    const double cos_o = dot(n, to_eye);
+    if (!oblique_exits_ || !(cos_o > 0)) return Rgb(1.0);
+    // the view's tangential direction (any at normal view: the tables' azimuths meet there)
+    Vec3 t_o = to_eye - n * cos_o;
+    const double lo = length(t_o);
+    t_o = lo > 1e-9 ? t_o * (1.0 / lo) : Vec3(0.0, 0.0, 0.0);
+    Rgb num(0.0), den(0.0);
+    double largest = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+        const double cos_i = dot(n, to_lights[i]);
+        if (!(cos_i > 0)) continue;
+        largest = std::max(largest, cos_i);
+        // the entering beam travels away from the light: its tangential direction is -to_light's
+        Vec3 t_i = n * cos_i - to_lights[i];
+        const double li = length(t_i);
+        const double cos_phi = li > 1e-9 && lo > 1e-9 ? dot(t_i, t_o) / li : 1.0;
+        const Rgb w = model_->entry_factor(cos_i) * cos_i;
+        num += w * model_->exit_factor_oblique(cos_i, cos_o, cos_phi);
+        den += w;
+    }
+    if (!(largest > 0)) return Rgb(1.0);
+    const Rgb base = model_->exit_factor(cos_o);
+    const double fade = std::min(1.0, largest / kObliqueFade);
+    Rgb out(1.0);
+    for (int c = 0; c < 3; ++c)
+        if (den[c] > 0 && base[c] > 0) out[c] = 1.0 + fade * (num[c] / (den[c] * base[c]) - 1.0);
+    return out;
+}
+
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                         const Rgb& irradiance_here) const {
+                         const Rgb& irradiance_here, const Rgb& exit_ratio) const {
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
     std::size_t visited = 0;
@@ -367,7 +398,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
         const int own = cloud.lookup_level(x);
         const Rgb div = cloud.shift_divergence_about(x, n, curvature_window(cloud, own));
         for (int k = 0; k < 3; ++k) m[k] *= 1.0 + std::clamp(div[k], -kMaxShiftDivergence, kMaxShiftDivergence);
-        return curved(m, cloud, x, n, curving_ ? own : 0) * model_->exit_factor(cos_o);
+        return curved(m, cloud, x, n, curving_ ? own : 0) * model_->exit_factor(cos_o) * exit_ratio;
     }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
@@ -375,7 +406,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited, wt);
     count_lookup(visited, false);
     m += irradiance_here * cloud.level_near(level) * (wt ? near_weight(*wt, h) : Rgb(1.0));
-    return curved(m, cloud, x, n, level) * model_->exit_factor(cos_o);
+    return curved(m, cloud, x, n, level) * model_->exit_factor(cos_o) * exit_ratio;
 }
 
 Rgb Subsurface::near_weight(const RadialWeight& w, double h) const {
@@ -429,9 +460,9 @@ Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, con
 }
 
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                         const Rgb& irradiance_here, double thickness) const {
+                         const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio) const {
     if (!(thickness < slab_threshold_) && !transmits(cloud, x, n, thickness, irradiance_here))
-        return radiance(cloud, x, n, to_eye, irradiance_here);
+        return radiance(cloud, x, n, to_eye, irradiance_here, exit_ratio);
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
     // Between the two thickness nodes around it (SlabCache::around): the same face's part

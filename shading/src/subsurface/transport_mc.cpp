@@ -56,8 +56,12 @@ std::string McSettings::validate() const {
     if (angle_bins < 1 || angle_bins > 100000) return "angle_bins: expected 1 .. 100000";
     if (radiance_orders < 0 || radiance_orders > 1000000 || radiance_nodes < 1 || radiance_nodes > 32)
         return "radiance: expected 0 .. 1000000 orders and 1 .. 32 nodes";
-    if (radiance_orders > 0 && (cos_inside != 1.0 || !radial))
+    if (oblique_azimuths != 0 && (oblique_azimuths < 2 || oblique_azimuths > 32 || radiance_orders == 0))
+        return "oblique_azimuths: expected 0, or 2 .. 32 with the radiance estimate";
+    if (radiance_orders > 0 && oblique_azimuths == 0 && (cos_inside != 1.0 || !radial))
         return "radiance: the estimate needs normal incidence (cos_inside 1) and the radial tallies";
+    if (oblique_azimuths > 0 && !exit_bands.empty()) return "oblique_azimuths: not with exit bands (normal incidence)";
+    if (high_from < 0) return "high_from: expected >= 0";
     if (exit_bands.size() > 15) return "exit_bands: expected at most 15 edges";
     for (std::size_t i = 0; i < exit_bands.size(); ++i)
         if (!(exit_bands[i] > (i ? exit_bands[i - 1] : 0.0) && std::isfinite(exit_bands[i])))
@@ -112,8 +116,13 @@ struct FaceTally {
     // Per exit-distance band (B bands; McFace::band_*): ne_band[(n * B + b) * nodes + j] by
     // order, band_multi and band_r [k * B + b], band_arrivals [(k * B + b) * na + a].
     std::vector<double> ne_band, band_multi, band_r, band_arrivals;
-    void init(std::size_t K, int nb, int na, bool radial_on, int ne_orders, int ne_nodes, int B) {
-        ne.assign(ne_orders > 0 ? std::size_t(ne_orders + 1) * ne_nodes : 0, 0.0);
+    // Oblique incidence (A azimuths): ne_az[(n * A + a) * nodes + j] by order; multi_high [k].
+    std::vector<double> ne_az, multi_high;
+    // (oblique: the run estimates the azimuths, A of them on this face, instead of `ne`)
+    void init(std::size_t K, int nb, int na, bool radial_on, int ne_orders, int ne_nodes, int B, bool oblique, int A, bool high) {
+        ne.assign(ne_orders > 0 && !oblique ? std::size_t(ne_orders + 1) * ne_nodes : 0, 0.0);
+        ne_az.assign(A > 0 ? std::size_t(ne_orders + 1) * A * ne_nodes : 0, 0.0);
+        multi_high.assign(high ? K : 0, 0.0);
         ne_band.assign(B > 0 ? std::size_t(ne_orders + 1) * B * ne_nodes : 0, 0.0);
         band_multi.assign(K * B, 0.0);
         band_r.assign(K * B, 0.0);
@@ -146,6 +155,8 @@ struct FaceTally {
         acc(band_multi, o.band_multi);
         acc(band_r, o.band_r);
         acc(band_arrivals, o.band_arrivals);
+        acc(ne_az, o.ne_az);
+        acc(multi_high, o.multi_high);
     }
     void clear_squares() {
         std::fill(single_sq.begin(), single_sq.end(), 0.0);
@@ -162,7 +173,8 @@ struct Tally {
             face[which].resize(s.eta.size());
             for (FaceTally& t : face[which])
                 t.init(s.albedos.size(), s.bins.count, s.angle_bins, s.radial, s.radiance_orders, s.radiance_nodes,
-                       which == 0 ? s.band_count() : 0);
+                       which == 0 ? s.band_count() : 0, s.oblique_azimuths > 0, which == 0 ? s.oblique_azimuths : 0,
+                       s.high_from > 0);
         }
     }
     void add(const Tally& o) {
@@ -201,6 +213,11 @@ public:
         B_ = s.band_count();
         for (double e : s.exit_bands) band_edge2_.push_back(e * e);
         for (std::size_t j = 0; j < ne_mu_.size(); ++j) ne_tan_.push_back(ne_sin_[j] * ne_inv_mu_[j]);
+        A_ = s.oblique_azimuths;
+        for (int a = 0; a < A_; ++a) {
+            az_cos_.push_back(std::cos(kPi * a / (A_ - 1)));
+            az_sin_.push_back(std::sin(kPi * a / (A_ - 1)));
+        }
     }
 
     void run_job(const Job& job, Tally& t) const {
@@ -212,6 +229,7 @@ public:
         const std::size_t J = ne_mu_.size(), orders = t.face[0][0].ne.size() / std::max<std::size_t>(1, J);
         for (auto& v : sc.ne) v.assign(orders * J * E_, 0.0);
         sc.ne_band.assign(orders * std::size_t(B_) * J * E_, 0.0);
+        sc.ne_az.assign(t.face[0][0].ne_az.size() * E_, 0.0);
         for (std::uint64_t i = job.first; i < job.first + job.count; ++i) {
             for (auto& v : sc.ps) std::fill(v.begin(), v.end(), 0.0);
             // (the bands' azimuths: a stream of their own, streams 3 and 4)
@@ -234,6 +252,8 @@ public:
         for (std::size_t e = 0; e < E_; ++e) {
             std::vector<double>& nb = t.face[0][e].ne_band;
             for (std::size_t i = 0; i < nb.size(); ++i) nb[i] = sc.ne_band[i * E_ + e];
+            std::vector<double>& na = t.face[0][e].ne_az;
+            for (std::size_t i = 0; i < na.size(); ++i) na[i] = sc.ne_az[i * E_ + e];
         }
     }
 
@@ -246,6 +266,7 @@ private:
         // cell; side by side they share a cache line (per eta, the tally's layout, each eta's row
         // lay megabytes from the next: most of a g 0.9 build's time went to those misses).
         std::vector<double> ne[2], ne_band;
+        std::vector<double> ne_az;  // oblique incidence: [((n * A + a) * J + j) * E + e]
     };
 
     // alpha_k^n for every albedo (pw), highest albedo last; returns the lowest k worth adding.
@@ -324,7 +345,9 @@ private:
                     break;
                 }
             }
-            if (n >= 2 && n <= s_.radiance_orders) {
+            if (n >= 2 && n <= s_.radiance_orders && A_ > 0) {
+                next_event_oblique(sc, n, z, ux, uy, uz, w);
+            } else if (n >= 2 && n <= s_.radiance_orders) {
                 double att[32];  // the top face's exp(-z / mu_j), for the bands
                 next_event(sc, n, z, ux, uz, w, att);
                 if (B_ > 0 && z < 40.0) next_event_bands(sc, side, n, x, y, z, ux, uy, uz, w, att);
@@ -387,6 +410,28 @@ private:
         }
     }
 
+    // Oblique incidence: next_event's estimate for the top face toward w_ja = (sin_j cos phi_a,
+    // +-sin_j sin phi_a, -mu_j), the mean of the two signs (the expectation's mirror symmetry
+    // about the plane of incidence, y = 0, halves the noise of its odd part for free).
+    void next_event_oblique(Scratch& sc, long n, double z, double ux, double uy, double uz, const double* w) const {
+        if (!(z < 40.0)) return;  // exp(-40): nothing arrives
+        const int J = int(ne_mu_.size());
+        const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
+        const double g = s_.g;
+        double* base = sc.ne_az.data() + std::size_t(n) * A_ * J * E_;
+        for (int j = 0; j < J; ++j) {
+            const double a = 0.5 * f * hg_norm_ * std::exp(-z * ne_inv_mu_[j]) * ne_inv_mu_[j];
+            const double along = -uz * ne_mu_[j];
+            for (int k = 0; k < A_; ++k) {
+                const double cx = ux * ne_sin_[j] * az_cos_[k], cy = uy * ne_sin_[j] * az_sin_[k];
+                const double d1 = 1.0 + g * g - 2.0 * g * (along + cx + cy), d2 = 1.0 + g * g - 2.0 * g * (along + cx - cy);
+                const double q = a * (1.0 / (d1 * std::sqrt(d1)) + 1.0 / (d2 * std::sqrt(d2)));
+                double* cell = base + std::size_t(k * J + j) * E_;
+                for (std::size_t e = 0; e < E_; ++e) cell[e] += w[e] * q;
+            }
+        }
+    }
+
     // Band of an exit at squared distance r2 from the entry point (mean free paths^2).
     int band_of(double r2) const {
         int b = 0;
@@ -444,6 +489,8 @@ private:
             face.multi_x[k] += c * x;
             ps[k] += c;
         }
+        if (s_.high_from > 0 && n > s_.high_from)
+            for (std::size_t k = lowest; k < K_; ++k) face.multi_high[k] += w_exit * pw[k];
         if (!s_.radial) return;
         const int nb = s_.bins.count, na = s_.angle_bins;
         const double r = std::sqrt(x * x + y * y);
@@ -479,6 +526,8 @@ private:
     double inv_eta_[kMaxEtas] = {};
     std::vector<double> ne_mu_, ne_inv_mu_, ne_sin_, ne_tan_;
     int B_ = 0;                        // exit-distance bands (0: off)
+    int A_ = 0;                        // oblique incidence's azimuths (0: off)
+    std::vector<double> az_cos_, az_sin_;
     std::vector<double> band_edge2_;   // their squared outer edges
     double hg_norm_ = 0;
     double ux0_ = 0, uz0_ = 1, low_factor_ = 1, log_rho0_ = 0, bins_per_ln_ = 1;
@@ -524,13 +573,31 @@ void finish_face(const FaceTally& t, const FaceTally* sq_short, const McSettings
     for (std::size_t i = 0; i < t.arrivals.size(); ++i) out.arrivals[i] = t.arrivals[i] / nf;
     // The next-event radiance per albedo: sum over orders of alpha^n times the order's tally.
     const int J = s.radiance_nodes, N = s.radiance_orders;
-    out.radiance.assign(N > 0 ? K * J : 0, 0.0);
-    for (std::size_t k = 0; k < K && N > 0; ++k) {
+    out.radiance.assign(N > 0 && !t.ne.empty() ? K * J : 0, 0.0);
+    for (std::size_t k = 0; k < K && !out.radiance.empty(); ++k) {
         const double la = s.albedos[k] > 0 ? std::log(s.albedos[k]) : -std::numeric_limits<double>::infinity();
         for (int n = 2; n <= N; ++n) {
             const double p = std::exp(n * la);
             if (p < 1e-30) break;
             for (int j = 0; j < J; ++j) out.radiance[k * J + j] += p * t.ne[std::size_t(n) * J + j] / nf;
+        }
+    }
+    // Oblique incidence's azimuths (top face), and the high orders (McSettings::high_from).
+    const int A = s.oblique_azimuths;
+    out.radiance_azimuth.assign(!t.ne_az.empty() ? K * A * J : 0, 0.0);
+    out.radiance_high.assign(s.high_from > 0 && !t.ne.empty() ? K * J : 0, 0.0);
+    out.multi_high.resize(t.multi_high.size());
+    for (std::size_t k = 0; k < t.multi_high.size(); ++k) out.multi_high[k] = t.multi_high[k] / nf;
+    for (std::size_t k = 0; k < K && N > 0; ++k) {
+        const double la = s.albedos[k] > 0 ? std::log(s.albedos[k]) : -std::numeric_limits<double>::infinity();
+        for (int n = 2; n <= N; ++n) {
+            const double p = std::exp(n * la);
+            if (p < 1e-30) break;
+            if (!out.radiance_azimuth.empty())
+                for (int i = 0; i < A * J; ++i)
+                    out.radiance_azimuth[k * A * J + i] += p * t.ne_az[std::size_t(n) * A * J + i] / nf;
+            if (!out.radiance_high.empty() && n > s.high_from)
+                for (int j = 0; j < J; ++j) out.radiance_high[k * J + j] += p * t.ne[std::size_t(n) * J + j] / nf;
         }
     }
     // The bands (top face): as above, per band.

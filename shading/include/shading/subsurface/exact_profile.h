@@ -35,6 +35,8 @@ public:
     Rgb exit_factor(double cos_o) const override;
     Rgb entry_factor(double cos_i) const override;
     Rgb entry_shift(double cos_i) const override;
+    Rgb exit_factor_oblique(double cos_i, double cos_o, double cos_phi) const override;
+    bool oblique_exits() const override;
     bool exit_weight(double cos_o, RadialWeight* w) const override;
     bool includes_single_scattering() const override { return false; }
     std::string describe() const override { return "exact"; }

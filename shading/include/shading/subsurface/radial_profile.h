@@ -47,6 +47,17 @@ public:
         (void)cos_i;
         return Rgb(0.0);
     }
+    // pi L / M toward outside cosine cos_o of the light that entered at outside cosine cos_i,
+    // cos_phi the cosine of the azimuth between the view's tangential direction and the entering
+    // beam's (1: the viewer ahead of the beam). Light entering at a slant leaves more toward
+    // where it was going (DIPOLE.md 10.3). exit_factor(cos_o) for a profile that does not know
+    // (the dipole: oblique_exits() false).
+    virtual Rgb exit_factor_oblique(double cos_i, double cos_o, double cos_phi) const {
+        (void)cos_i;
+        (void)cos_phi;
+        return exit_factor(cos_o);
+    }
+    virtual bool oblique_exits() const { return false; }
     // The exit distribution's change with distance from the entry point: light leaving near it
     // leaves closer to the normal than the exitance-weighted mean, a few transport mfp out more
     // obliquely (DIPOLE.md 10.7). Fills `w` for a viewer at outside cosine cos_o so that

@@ -34,12 +34,12 @@ namespace shading {
 
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
-constexpr std::uint32_t kProfileGeneratorVersion = 5;
+constexpr std::uint32_t kProfileGeneratorVersion = 6;
 // The .ssp layout's version (3: the checksum at bytes 24..31 covers the whole file, header
 // included; 4: each record holds the oblique beams' exit shifts; 5: and the exit distribution per
-// distance band; DIPOLE.md 10.4). Files of another version are refused; `sstool build
-// --if-stale` (make brdf-data) rebuilds them.
-constexpr std::uint32_t kProfileFormatVersion = 5;
+// distance band; 6: and per oblique incidence and azimuth; DIPOLE.md 10.4). Files of another
+// version are refused; `sstool build --if-stale` (make brdf-data) rebuilds them.
+constexpr std::uint32_t kProfileFormatVersion = 6;
 
 class ProfileError : public std::runtime_error {
 public:
@@ -70,6 +70,12 @@ struct ProfileBuildSettings {
     // albedo-1 medium (mean free paths e (1 - g)^-1 at each g node). DIPOLE.md 10.3, 10.7.
     std::vector<double> exit_bands{0.25, 0.5, 1, 2, 4, 8, 16};
     int band_count() const { return exit_bands.empty() ? 0 : int(exit_bands.size()) + 1; }
+    // The exit distribution of light entering at each oblique cos_inside, at this many azimuths
+    // from the beam's forward direction (0 .. 180 degrees in equal steps; semi-infinite tables
+    // only, 0 for slabs or none): the orders up to short_orders / (1 - g) from the oblique runs'
+    // own next-event estimate, the higher ones as at normal incidence in the oblique run's
+    // share of them. DIPOLE.md 10.3.
+    int oblique_azimuths = 7;
     std::uint64_t seed = 1;
     int threads = 0;                   // 0: all hardware threads
     std::string validate() const;
@@ -103,6 +109,12 @@ struct FaceRecord {
     // bands' ratios weighted by their M_b / M average to 1 at every cosine. 1 where a band has
     // too few exits to say (then the band inside it).
     std::vector<double> band_rho, band_ratio;
+    // Oblique incidence (ProfileBuildSettings::oblique_azimuths = A; empty without): pi L_inside /
+    // M at the inside cosines angle_cosine(j) for light entering at cos_inside[i] (i below the
+    // last, normal, which is `angle`), toward azimuth pi a / (A - 1) from the beam's forward
+    // tangential direction: oblique[(i * A + a) * angle_nodes + j]; M that incidence's own
+    // multiple-scattering exitance.
+    std::vector<double> oblique;
 };
 
 // The tables of one file: axes and records. Radial node 0 is rho = 0 (the disc's mean), node
@@ -177,6 +189,14 @@ public:
     // along the refracted beam's tangential direction, for light arriving at outside cosine
     // cos_i: interpolated like entry_factor (0 at normal incidence).
     double entry_shift(double cos_i) const;
+    // pi L(cos_o) / M toward outside cosine cos_o for light that entered at outside cosine cos_i
+    // (refracted with this channel's eta, linear between the tables' inside cosines, held below
+    // the first), cos_phi the cosine of the azimuth between the view's and the entering beam's
+    // tangential directions (1: the viewer ahead of the beam, forward; linear in the angle
+    // between the tables' azimuths). exit_factor(cos_o) at normal incidence, and where the
+    // tables have no oblique exits (oblique_exits() false).
+    double exit_factor_oblique(double cos_i, double cos_o, double cos_phi) const;
+    bool oblique_exits() const { return !oblique_.empty(); }
     // The exit distribution's change with distance (semi-infinite tables with distance bands;
     // DIPOLE.md 10.7): exit_bands() nodes j at the inside cosines exit_band_cosine(j); at
     // distance rho (transport mfp) from the entry point the radiance toward inside cosine mu_j
@@ -198,6 +218,10 @@ private:
     std::vector<double> band_rho_, band_ratio_;  // the records' band data, mixed like the angles
     std::size_t band_nodes_ = 0;
     double angle_norm_ = 1;
+    // oblique_[(i * A + a) * 129 + j]: as angle_, per oblique inside cosine i and azimuth a
+    std::vector<double> oblique_;
+    int oblique_azimuths_ = 0;
+    double inside_index(double cos_o) const;  // exit_factor's position in angle_ (0 .. 128)
 };
 
 // The reduced albedo alpha' whose total diffuse reflectance at normal incidence, multiple

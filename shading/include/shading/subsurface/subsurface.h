@@ -86,6 +86,11 @@ struct SubsurfaceSettings {
     // auto_single_scatter (at each lookup, not in the BRDF), as the finish does for `auto`.
     // Off by default: lookups of slanted-lit objects cost up to ~5x (shading/DIPOLE.md 6b).
     bool directional = false;
+    // The exact profile's exit distribution for light entering at a slant (RadialProfile::
+    // exit_factor_oblique; shading/DIPOLE.md 6e): the half-space lookup's exit factor taken for
+    // the incidence of the lights at the point (incidence_exit_ratio). Nothing changes for a
+    // profile without oblique exits (the dipole) or under light straight on.
+    bool oblique_exits = true;
     // The exact profile's first-order correction for the surface's mean curvature
     // (curvature.h; shading/DIPOLE.md 6d): off here, on by default in the finish with the
     // exact profile.
@@ -143,6 +148,14 @@ public:
     // Whether lookups use the profile's entry shifts (settings.directional and a profile with
     // them: shading/DIPOLE.md 6b).
     bool directional() const { return directional_; }
+    bool oblique_exits() const { return oblique_exits_; }
+    // The exit distribution's change with the light's incidence at x (normal n), per channel:
+    // sum over the lights facing x (unit directions to_lights[i]; shadows not tested) of the
+    // light's weight entry_factor(cos_i) cos_i times exit_factor_oblique over exit_factor, over
+    // the weights' sum. Faded to 1 as the lights' largest cosine falls from kObliqueFade to 0
+    // (at a terminator and beyond it the light at x entered elsewhere). 1 without oblique exits.
+    Rgb incidence_exit_ratio(const Vec3& n, const Vec3& to_eye, const Vec3* to_lights, std::size_t count) const;
+    static constexpr double kObliqueFade = 0.1;
     // Per channel c(eta, alpha') times the anisotropy weight times mfp', in scene units
     // (curvature.h): the exitance's relative change per unit of mean curvature; 0 with the
     // correction off.
@@ -211,15 +224,17 @@ public:
     // cloud is `cloud`, with E_t(x) the transmitted irradiance at x itself; 0 when the viewer
     // is below the surface. With settings.curvature, M(x) times 1 + curvature_length() H per
     // channel (H the cloud's mean curvature about x; curvature.h).
+    // exit_ratio: incidence_exit_ratio's, which multiplies the half-space's exit factor.
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                 const Rgb& irradiance_here) const;
+                 const Rgb& irradiance_here, const Rgb& exit_ratio = Rgb(1.0)) const;
     // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
     // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R; between
     // the two thickness nodes around it, the same face's part linear in ln d, the opposite
     // face's geometric in d); up to transmit_threshold() the same where transmits(); else
     // exactly the call above.
+    // (exit_ratio: for the half-space lookup only; a slab's faces keep their own exits.)
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                 const Rgb& irradiance_here, double thickness) const;
+                 const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio = Rgb(1.0)) const;
 
     // At a point between slab_threshold() and transmit_threshold() thick: whether the light
     // through its far face could exceed kSlabTolerance of its own face's (T_total at its
@@ -258,6 +273,7 @@ private:
     double transmit_threshold_ = 0;  // >= slab_threshold_
     bool slab_single_ = false;
     bool directional_ = false;  // the profile has entry shifts and settings.directional is on
+    bool oblique_exits_ = false;  // the profile has oblique exits and settings.oblique_exits is on
     Rgb curvature_length_;      // settings.curvature: c(eta, alpha') mfp' per channel, else 0
     bool curving_ = false;      // some channel's curvature_length_ is not 0
     // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window

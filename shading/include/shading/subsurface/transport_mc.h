@@ -81,6 +81,18 @@ struct McSettings {
     // paths and every other tally stay as without bands). See McFace::band_*.
     std::vector<double> exit_bands;
     int band_count() const { return exit_bands.empty() ? 0 : int(exit_bands.size()) + 1; }
+    // Oblique incidence's exit distribution (0: off): the top face's next-event radiance at the
+    // cosines radiance_cosines() and at `oblique_azimuths` azimuths phi_a = pi a / (A - 1) about
+    // the normal, measured from the beam's tangential direction (+x: phi 0 is forward), for the
+    // orders 2 .. radiance_orders (McFace::radiance_azimuth). Each node's estimate is the mean
+    // of phi_a and -phi_a (the expectation is symmetric about the plane of incidence). Any
+    // cos_inside; replaces the normal-incidence estimate (`radiance`), and needs no radial tallies.
+    int oblique_azimuths = 0;
+    // From this order on (0: off), the multiple-scattering exits of higher orders are tallied
+    // apart (McFace::multi_high), and so is the normal-incidence radiance of the orders above it
+    // (McFace::radiance_high): the diffusive orders, whose exit distribution hardly depends on how
+    // the light entered.
+    int high_from = 0;
     // Empty if valid, else the first problem.
     std::string validate() const;
 };
@@ -113,6 +125,13 @@ struct McFace {
     // the bands) and the high orders' arrivals band_arrivals[(k * B + b) * angle_bins + a] (as
     // `arrivals`).
     std::vector<double> band_multi, band_r, band_radiance, band_arrivals;
+    // With McSettings::oblique_azimuths = A (top face only): the radiance reaching the face from
+    // inside toward inside cosine mu_j at azimuth phi_a, orders 2 .. radiance_orders, per unit
+    // entering power: radiance_azimuth[(k * A + a) * J + j].
+    std::vector<double> radiance_azimuth;
+    // With McSettings::high_from = h: the exits of order above h (per albedo), and `radiance`'s
+    // share of the orders h + 1 .. radiance_orders ([k * J + j]; normal incidence).
+    std::vector<double> multi_high, radiance_high;
 };
 
 struct McResult {
