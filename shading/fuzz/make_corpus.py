@@ -214,6 +214,7 @@ def main(brdftool, out):
         "radiance-orders-huge": sp("<d", 152, 1e9, fix=True),
         "g-out-of-range": sp("<d", 168, 1.5, fix=True),
         "oblique-azimuths-1": sp("<I", 160, 1, fix=True),
+        "oblique-orders-0": sp("<I", 164, 0, fix=True),
         "oblique-in-slabs": patcher(sgood["slabs"], ssp_fix)("<I", 160, 7, fix=True),
         "oblique-negative": sp("<f", len(sb) - 4, -1.0, fix=True),
         "payload-offset": sp("<I", 12, soff + 16, fix=True),
@@ -222,7 +223,7 @@ def main(brdftool, out):
         "header-byte-60": sp("<I", 60, 11),  # radial nodes per decade, checksum left: format 2 missed it
         "total-nan": sp("<f", soff, math.nan, fix=True),
         "total-negative": sp("<f", soff, -0.5, fix=True),
-        "band-ratio-negative": sp("<f", len(sb) - 4 * (1 + 5 * 7 * 8), -1.0, fix=True),
+        "band-ratio-negative": sp("<f", len(sb) - 4 * (1 + 7 * 7 * 8), -1.0, fix=True),
         "angle-huge": sp("<f", soff + 24, 1e30, fix=True),
     }
     for name, data in sbad.items():

@@ -148,31 +148,32 @@ TEST(ProfileTables, LoaderNamesTheOffsetOfEveryKindOfDamage) {
         {"negative band ratio",
          [&](auto& b) {
              const float neg = -1.0f;
-             std::memcpy(&b[b.size() - 4 * (1 + 5 * 7 * 8)], &neg, 4);  // before the oblique exits
+             std::memcpy(&b[b.size() - 4 * (1 + 7 * 7 * 8)], &neg, 4);  // before the oblique exits
              patch_checksum(b);
          },
          "reflection albedo=0.999992861 band exit ratio 63: expected a value in [0, 100], found -1"},
         {"negative profile",
          [&](auto& b) {
              const float neg = -1.0f;
-             std::memcpy(&b[b.size() - 4 * (1 + 8 + 64 + 5 * 7 * 8)], &neg, 4);  // before bands, their ratios, the oblique exits
+             std::memcpy(&b[b.size() - 4 * (1 + 8 + 64 + 7 * 7 * 8)], &neg, 4);  // before bands, their ratios, the oblique exits
              patch_checksum(b);
          },
          "radius node 50: expected a value in [0, 1e+30], found -1"},
         {"band edges", [&](auto& b) { set32(b, 76, 16), patch_checksum(b); }, "offset 76: expected 0 to 15 exit-distance band edges, found 16"},
         {"band edge order",
-         [&](auto& b) { setf64(b, 168 + 8 * (2 + 2 + 1 + 6 + 1), 0.1), patch_checksum(b); },
+         [&](auto& b) { setf64(b, 168 + 8 * (2 + 2 + 1 + 8 + 1), 0.1), patch_checksum(b); },
          "exit-distance band edge node 1: expected increasing values, found 0.1 after 0.25"},
         {"oblique azimuths", [&](auto& b) { set32(b, 160, 1), patch_checksum(b); },
          "offset 160: expected 0, or 2 to 32 oblique exit azimuths, found 1"},
-        {"reserved", [&](auto& b) { set32(b, 164, 7), patch_checksum(b); }, "offset 164: expected 0 (reserved), found 7"},
+        {"oblique orders", [&](auto& b) { set32(b, 164, 0), patch_checksum(b); },
+         "offset 164: expected 1 to 100000 oblique exit orders, found 0"},
         {"negative oblique exit",
          [&](auto& b) {
              const float neg = -2.0f;
              std::memcpy(&b[b.size() - 4], &neg, 4);
              patch_checksum(b);
          },
-         "oblique exit sample 279: expected a value in [0, 1000000], found -2"},
+         "oblique exit sample 391: expected a value in [0, 1000000], found -2"},
     };
     for (const Case& c : cases) {
         std::vector<std::uint8_t> b = good;

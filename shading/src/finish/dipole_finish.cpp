@@ -312,12 +312,16 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     // the exit distribution for the lights' incidence at x (their directions only: no shadow rays)
     Rgb exit_ratio(1.0);
     if (subsurface.oblique_exits()) {
-        std::vector<Vec3> to_lights;
-        for (int i = 0, lights = object.light_count(); i < lights; i++) {
-            Vec3 to_light;
-            if (object.light_direction(i, x, &to_light)) to_lights.push_back(to_light);
-        }
-        exit_ratio = subsurface.incidence_exit_ratio(n, to_eye, to_lights.data(), to_lights.size());
+        // (a scene's few lights on the stack; more on the heap)
+        constexpr int kOnStack = 16;
+        Vec3 stack[kOnStack];
+        std::vector<Vec3> heap;
+        const int lights = object.light_count();
+        Vec3* to_lights = lights <= kOnStack ? stack : (heap.resize(std::size_t(lights)), heap.data());
+        std::size_t count = 0;
+        for (int i = 0; i < lights; i++)
+            if (object.light_direction(i, x, &to_lights[count])) ++count;
+        exit_ratio = subsurface.incidence_exit_ratio(n, to_eye, to_lights, count);
     }
     return subsurface.radiance(*cloud, x, n, to_eye, e, thickness, exit_ratio) + single;
 }

@@ -440,6 +440,7 @@ std::string ProfileBuildSettings::validate() const {
             return "exit_bands: expected increasing edges in (0, 1000] transport mfp";
     if (oblique_azimuths != 0 && (oblique_azimuths < 2 || oblique_azimuths > 32))
         return "oblique_azimuths: expected 0, or 2 to 32";
+    if (oblique_orders < 1 || oblique_orders > 100000) return "oblique_orders: expected 1 to 100000";
     if (photons < 1 || !(short_orders >= 1) || !(roulette_order >= 1) || !(oblique_fraction > 0 && oblique_fraction <= 1))
         return "photons: expected photons >= 1, short_orders >= 1, roulette_order >= 1, oblique_fraction in (0, 1]";
     return "";
@@ -454,7 +455,7 @@ bool ProfileTables::stale(const ProfileBuildSettings& w) const {
            s.photons != w.photons ||
            s.short_photons != w.short_photons || s.short_orders != w.short_orders || s.roulette_order != w.roulette_order ||
            s.oblique_fraction != w.oblique_fraction || s.seed != w.seed || s.exit_bands != w.exit_bands ||
-           s.oblique_azimuths != w.oblique_azimuths;
+           s.oblique_azimuths != w.oblique_azimuths || (s.oblique_azimuths > 0 && s.oblique_orders != w.oblique_orders);
 }
 
 std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& s,
@@ -502,8 +503,9 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             mc.radiance_nodes = s.angle_nodes;
             if (t->faces == 1)
                 for (double e : s.exit_bands) mc.exit_bands.push_back(e / (1.0 - g));
-            // (the orders the oblique runs estimate themselves: those their short photons reach)
-            if (A > 0) mc.high_from = mc.short_orders;
+            // (the orders the oblique runs estimate themselves)
+            const int oblique_orders = int(std::ceil(s.oblique_orders / (1.0 - g)));
+            if (A > 0) mc.high_from = oblique_orders;
             mc.seed = node_seed(s.seed, run, -1);
             const McResult normal = run_transport_mc(mc);
             Diagnostics diag;
@@ -521,8 +523,9 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             int clamped = 0;
             McSettings ob = mc;
             ob.radial = false;
-            ob.radiance_orders = A > 0 ? mc.short_orders : 0;
+            ob.radiance_orders = A > 0 ? oblique_orders : 0;
             ob.oblique_azimuths = A;
+            ob.high_from = A > 0 ? oblique_orders : 0;
             ob.exit_bands.clear();
             ob.photons = std::max<std::uint64_t>(1, std::uint64_t(double(s.photons) * s.oblique_fraction));
             ob.short_photons = std::uint64_t(double(s.short_photons) * s.oblique_fraction);

@@ -55,7 +55,7 @@ std::string ProfileTables::describe() const {
       << "\n  inside incidence cosines: " << list(s.cos_inside) << "\n  angle: " << s.angle_nodes
       << " inside-radiance samples (next-event to " << num(s.radiance_orders) << "/(1-g) events, then " << s.angle_bins
       << " bins)"
-      << "\n  oblique exits: " << (s.oblique_azimuths > 0 ? std::to_string(s.oblique_azimuths) + " azimuths" : std::string("none"))
+      << "\n  oblique exits: " << (s.oblique_azimuths > 0 ? std::to_string(s.oblique_azimuths) + " azimuths, orders to " + std::to_string(s.oblique_orders) + "/(1-g) their own" : std::string("none"))
       << "\n  exit-distance bands: " << (s.exit_bands.empty() ? std::string("none") : "edges " + list(s.exit_bands) + " transport mfp")
       << "\n  photons per node: " << s.photons << " + " << s.short_photons << " short (" << num(s.short_orders)
       << "/(1-g) events), roulette from " << num(s.roulette_order) << "/(1-g) events, oblique " << num(s.oblique_fraction)
@@ -96,7 +96,7 @@ std::vector<std::uint8_t> ProfileTables::serialize() const {
     put_u64(b, s.seed);                                  // 144
     put_f64(b, s.radiance_orders);                       // 152
     put_u32(b, std::uint32_t(s.oblique_azimuths));       // 160 oblique exits' azimuths (0: none)
-    put_u32(b, 0);                                       // 164 reserved
+    put_u32(b, std::uint32_t(s.oblique_azimuths > 0 ? s.oblique_orders : 0));  // 164 their orders (0: none)
     for (double v : s.g) put_f64(b, v);
     for (double v : s.eta) put_f64(b, v);
     for (double v : s.thickness) put_f64(b, v);
@@ -194,7 +194,11 @@ std::shared_ptr<const ProfileTables> load_profile_tables(const std::uint8_t* dat
     if (azimuths > 0 && t->faces == 2)
         fail(160, "expected no oblique exits in a slab table (flags 1), found " + std::to_string(azimuths) + " azimuths");
     s.oblique_azimuths = int(azimuths);
-    if (rd_u32(data + 164) != 0) fail(164, "expected 0 (reserved), found " + std::to_string(rd_u32(data + 164)));
+    const std::uint32_t oblique_orders = rd_u32(data + 164);
+    if (azimuths > 0 ? !(oblique_orders >= 1 && oblique_orders <= 100000) : oblique_orders != 0)
+        fail(164, std::string("expected ") + (azimuths > 0 ? "1 to 100000 oblique exit orders" : "0 oblique exit orders (no azimuths)") +
+                      ", found " + std::to_string(oblique_orders));
+    if (azimuths > 0) s.oblique_orders = int(oblique_orders);
     if (!(s.bins.rho_0 > 0 && s.bins.rho_0 < 1e3)) fail(80, "expected the first radius in (0, 1000), found " + num(s.bins.rho_0));
     // The generator's settings (the file's identity for --if-stale): ranges of ProfileBuildSettings.
     if (!(s.short_orders >= 1 && s.short_orders <= 1e6)) fail(104, "expected short orders in [1, 1e6], found " + num(s.short_orders));

@@ -216,7 +216,8 @@ public:
         A_ = s.oblique_azimuths;
         for (int a = 0; a < A_; ++a) {
             az_cos_.push_back(std::cos(kPi * a / (A_ - 1)));
-            az_sin_.push_back(std::sin(kPi * a / (A_ - 1)));
+            // (exactly 0 at 0 and 180 degrees, where +phi and -phi are one direction)
+            az_sin_.push_back(a == 0 || a == A_ - 1 ? 0.0 : std::sin(kPi * a / (A_ - 1)));
         }
     }
 
@@ -420,12 +421,24 @@ private:
         const double g = s_.g;
         double* base = sc.ne_az.data() + std::size_t(n) * A_ * J * E_;
         for (int j = 0; j < J; ++j) {
-            const double a = 0.5 * f * hg_norm_ * std::exp(-z * ne_inv_mu_[j]) * ne_inv_mu_[j];
+            const double a = f * hg_norm_ * std::exp(-z * ne_inv_mu_[j]) * ne_inv_mu_[j];
             const double along = -uz * ne_mu_[j];
+            double same = -1;  // toward the normal every azimuth is one direction: its value once
             for (int k = 0; k < A_; ++k) {
-                const double cx = ux * ne_sin_[j] * az_cos_[k], cy = uy * ne_sin_[j] * az_sin_[k];
-                const double d1 = 1.0 + g * g - 2.0 * g * (along + cx + cy), d2 = 1.0 + g * g - 2.0 * g * (along + cx - cy);
-                const double q = a * (1.0 / (d1 * std::sqrt(d1)) + 1.0 / (d2 * std::sqrt(d2)));
+                double q;
+                if (same >= 0) {
+                    q = same;
+                } else {
+                    const double cx = ux * ne_sin_[j] * az_cos_[k], cy = uy * ne_sin_[j] * az_sin_[k];
+                    const double d1 = 1.0 + g * g - 2.0 * g * (along + cx + cy);
+                    if (cy == 0.0) {
+                        q = a / (d1 * std::sqrt(d1));
+                    } else {
+                        const double d2 = 1.0 + g * g - 2.0 * g * (along + cx - cy);
+                        q = 0.5 * a * (1.0 / (d1 * std::sqrt(d1)) + 1.0 / (d2 * std::sqrt(d2)));
+                    }
+                    if (ne_sin_[j] == 0.0) same = q;
+                }
                 double* cell = base + std::size_t(k * J + j) * E_;
                 for (std::size_t e = 0; e < E_; ++e) cell[e] += w[e] * q;
             }
