@@ -364,7 +364,7 @@ void process_face(const McFace& f, const McSettings& mc, int k, double g, double
 // histogram above radiance_orders) times the oblique run's share of such exits over the normal
 // run's. Stored as pi I / M with M the oblique run's own multiple-scattering exitance, as
 // `angle` is; where the exitance the samples imply (their azimuthal mean) differs from it by
-// more than a factor 2, by that (as process_face). DIPOLE.md 10.3.
+// more than a factor 2, by that (as process_face). DIPOLE.md 6e.
 void oblique_exits(const McFace& normal, const McSettings& mc, const McFace& f, int k, double eta, int ic, int A,
                    FaceRecord& rec, Diagnostics& diag) {
     const std::vector<double> nodes = mc.radiance_cosines();

@@ -50,7 +50,7 @@ public:
     // pi L / M toward outside cosine cos_o of the light that entered at outside cosine cos_i,
     // cos_phi the cosine of the azimuth between the view's tangential direction and the entering
     // beam's (1: the viewer ahead of the beam). Light entering at a slant leaves more toward
-    // where it was going (DIPOLE.md 10.3). exit_factor(cos_o) for a profile that does not know
+    // where it was going (DIPOLE.md 6e). exit_factor(cos_o) for a profile that does not know
     // (the dipole: oblique_exits() false).
     virtual Rgb exit_factor_oblique(double cos_i, double cos_o, double cos_phi) const {
         (void)cos_i;
