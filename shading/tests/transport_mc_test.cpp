@@ -310,30 +310,24 @@ TEST(TransportMc, ExitShiftOfASlantedBeamMatchesAnAnalogWalk) {
 
 namespace {
 
-// An analog walk for the exit distribution per distance band, sharing nothing with
-// transport_mc.cpp: isotropic scattering in the half-space z > 0 (index matched), absorption by
-// survival with probability alpha, a beam entering at the origin along the normal. Per band of
-// exit distance (edges in mean free paths, the last band open), of the exits after two or more
-// scatterings: their number, and the number leaving at a cosine in [cos_lo, cos_hi].
-void analog_band_cone(double alpha, const std::vector<double>& edges, double cos_lo, double cos_hi, int photons,
-                      std::vector<double>* all, std::vector<double>* cone) {
-    Xorshift uniform(0x2545f4914f6cdd1dULL);
+// An analog walk sharing nothing with transport_mc.cpp: Henyey-Greenstein scattering of
+// asymmetry g (isotropic at g = 0; sampled by its own inversion, the new direction built from
+// an orthonormal frame about the old) in the index-matched half-space z > 0, absorption by
+// survival with probability alpha, a beam entering at the origin along (sin, 0, cos) of inside
+// cosine cos_in. exit(xe, ye, ux, uy, uz, order) is called for every photon that leaves through
+// z = 0, at the point where it leaves.
+template <class Exit>
+void analog_walk(double alpha, double g, double cos_in, int photons, std::uint64_t seed, Exit exit) {
+    Xorshift uniform(seed);
     const double kTwoPi = 6.283185307179586;
-    all->assign(edges.size() + 1, 0.0);
-    cone->assign(edges.size() + 1, 0.0);
     for (int i = 0; i < photons; ++i) {
-        double x = 0, y = 0, z = 0, ux = 0, uy = 0, uz = 1;
+        double x = 0, y = 0, z = 0, ux = std::sqrt(1 - cos_in * cos_in), uy = 0, uz = cos_in;
         int order = 0;
         for (;;) {
             const double t = -std::log(uniform());
             if (z + t * uz < 0) {
-                const double tb = -z / uz, xe = x + tb * ux, ye = y + tb * uy;
-                if (order >= 2) {
-                    std::size_t b = 0;
-                    while (b < edges.size() && std::hypot(xe, ye) >= edges[b]) ++b;
-                    (*all)[b] += 1;
-                    if (-uz >= cos_lo && -uz <= cos_hi) (*cone)[b] += 1;
-                }
+                const double tb = -z / uz;
+                exit(x + tb * ux, y + tb * uy, ux, uy, uz, order);
                 break;
             }
             x += t * ux;
@@ -341,12 +335,44 @@ void analog_band_cone(double alpha, const std::vector<double>& edges, double cos
             z += t * uz;
             if (uniform() >= alpha) break;
             ++order;
-            const double mu = 2 * uniform() - 1, phi = kTwoPi * uniform(), st = std::sqrt(1 - mu * mu);
-            ux = st * std::cos(phi);
-            uy = st * std::sin(phi);
-            uz = mu;
+            double ct;
+            if (g == 0) {
+                ct = 2 * uniform() - 1;
+            } else {
+                const double s = (1 - g * g) / (1 - g + 2 * g * uniform());
+                ct = std::clamp((1 + g * g - s * s) / (2 * g), -1.0, 1.0);
+            }
+            const double st = std::sqrt(std::max(0.0, 1 - ct * ct)), phi = kTwoPi * uniform();
+            // frame about u: e1 = normalize(a x u) for an axis a not along u, e2 = u x e1
+            const double ax = std::fabs(ux) < 0.9 ? 1.0 : 0.0, ay = 1.0 - ax;
+            double e1x = ay * uz, e1y = -ax * uz, e1z = ax * uy - ay * ux;
+            const double l1 = std::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
+            e1x /= l1, e1y /= l1, e1z /= l1;
+            const double e2x = uy * e1z - uz * e1y, e2y = uz * e1x - ux * e1z, e2z = ux * e1y - uy * e1x;
+            const double c = std::cos(phi) * st, d = std::sin(phi) * st;
+            const double nx = ct * ux + c * e1x + d * e2x, ny = ct * uy + c * e1y + d * e2y, nz = ct * uz + c * e1z + d * e2z;
+            const double ln = std::sqrt(nx * nx + ny * ny + nz * nz);
+            ux = nx / ln, uy = ny / ln, uz = nz / ln;
         }
     }
+}
+
+// The analog walk for the exit distribution per distance band: isotropic, the beam along the
+// normal. Per band of exit distance (edges in mean free paths, the last band open), of the
+// exits after two or more scatterings: their number, and the number leaving at a cosine in
+// [cos_lo, cos_hi].
+void analog_band_cone(double alpha, const std::vector<double>& edges, double cos_lo, double cos_hi, int photons,
+                      std::vector<double>* all, std::vector<double>* cone) {
+    all->assign(edges.size() + 1, 0.0);
+    cone->assign(edges.size() + 1, 0.0);
+    analog_walk(alpha, 0.0, 1.0, photons, 0x2545f4914f6cdd1dULL,
+                [&](double xe, double ye, double, double, double uz, int order) {
+                    if (order < 2) return;
+                    std::size_t b = 0;
+                    while (b < edges.size() && std::hypot(xe, ye) >= edges[b]) ++b;
+                    (*all)[b] += 1;
+                    if (-uz >= cos_lo && -uz <= cos_hi) (*cone)[b] += 1;
+                });
 }
 
 }  // namespace
@@ -428,59 +454,24 @@ TEST(TransportMc, ExitDistributionPerDistanceBandMatchesAnAnalogWalk) {
 
 namespace {
 
-// An analog walk for oblique incidence, sharing nothing with transport_mc.cpp: Henyey-Greenstein
-// scattering (sampled here by its own inversion, the new direction built from an orthonormal
-// frame about the old) in the index-matched half-space z > 0, absorption by survival with
-// probability alpha, a beam entering at the origin along (sin, 0, cos) of inside cosine cos_in.
-// Of the exits after two or more scatterings: their number, and per bin (exit cosine in
-// [c_lo, c_hi], azimuth |phi| from the beam's forward direction +x within half_width of phi_b)
-// the number leaving there.
+// The analog walk for oblique incidence (HG of asymmetry g, the beam at inside cosine cos_in):
+// of the exits after two or more scatterings, their number (returned), and per bin (exit cosine
+// in [c_lo, c_hi], azimuth |phi| from the beam's forward direction +x within half_width of
+// phi_b) the number leaving there.
 struct AnalogBin {
     double c_lo, c_hi, phi, half_width;
     double count = 0;
 };
 double analog_oblique(double alpha, double g, double cos_in, int photons, std::vector<AnalogBin>* bins) {
-    Xorshift uniform(0x9e3779b97f4a7c15ULL);
-    const double kTwoPi = 6.283185307179586, kPiHere = 3.141592653589793;
     double all = 0;
-    for (int i = 0; i < photons; ++i) {
-        double x = 0, y = 0, z = 0, ux = std::sqrt(1 - cos_in * cos_in), uy = 0, uz = cos_in;
-        int order = 0;
-        for (;;) {
-            const double t = -std::log(uniform());
-            if (z + t * uz < 0) {
-                if (order >= 2) {
+    analog_walk(alpha, g, cos_in, photons, 0x9e3779b97f4a7c15ULL,
+                [&](double, double, double ux, double uy, double uz, int order) {
+                    if (order < 2) return;
                     all += 1;
                     const double mu = -uz, phi = std::fabs(std::atan2(uy, ux));
-                    for (AnalogBin& b : *bins) {
-                        double dphi = std::fabs(phi - b.phi);
-                        if (mu >= b.c_lo && mu <= b.c_hi && dphi <= b.half_width) b.count += 1;
-                    }
-                }
-                break;
-            }
-            x += t * ux;
-            y += t * uy;
-            z += t * uz;
-            if (uniform() >= alpha) break;
-            ++order;
-            const double xi = uniform();
-            const double s = (1 - g * g) / (1 - g + 2 * g * xi);
-            const double ct = std::clamp((1 + g * g - s * s) / (2 * g), -1.0, 1.0), st = std::sqrt(1 - ct * ct);
-            const double phi = kTwoPi * uniform();
-            // frame about u: a = any unit vector not along u, e1 = normalize(a x u), e2 = u x e1
-            const double ax = std::fabs(ux) < 0.9 ? 1.0 : 0.0, ay = 1.0 - ax;
-            double e1x = ay * uz, e1y = -ax * uz, e1z = ax * uy - ay * ux;
-            const double l1 = std::sqrt(e1x * e1x + e1y * e1y + e1z * e1z);
-            e1x /= l1, e1y /= l1, e1z /= l1;
-            const double e2x = uy * e1z - uz * e1y, e2y = uz * e1x - ux * e1z, e2z = ux * e1y - uy * e1x;
-            const double c = std::cos(phi) * st, d = std::sin(phi) * st;
-            const double nx = ct * ux + c * e1x + d * e2x, ny = ct * uy + c * e1y + d * e2y, nz = ct * uz + c * e1z + d * e2z;
-            const double ln = std::sqrt(nx * nx + ny * ny + nz * nz);
-            ux = nx / ln, uy = ny / ln, uz = nz / ln;
-        }
-    }
-    (void)kPiHere;
+                    for (AnalogBin& b : *bins)
+                        if (mu >= b.c_lo && mu <= b.c_hi && std::fabs(phi - b.phi) <= b.half_width) b.count += 1;
+                });
     return all;
 }
 
