@@ -94,6 +94,16 @@ TEST(ProfileTables, NoiseOnlySlabFacesStillLoad) {
     const std::vector<std::uint8_t> bytes = t->serialize();
     EXPECT_EQ(load_error(bytes), "");
     auto back = load_profile_tables(bytes.data(), bytes.size(), "slabs.ssp");
+    // Asked for again with the same settings, the file is not stale: a slab table has no
+    // distance bands and no oblique exits whatever the settings say (before 2026-12-06 the
+    // oblique azimuths made every `make brdf-data` rebuild the slab tables: 3.5 minutes).
+    ProfileBuildSettings with_bands = s;
+    with_bands.exit_bands = {0.25, 1.0};
+    EXPECT_FALSE(back->stale(s));
+    EXPECT_FALSE(back->stale(with_bands));
+    ProfileBuildSettings other = s;
+    other.seed = 2;
+    EXPECT_TRUE(back->stale(other));
     for (double d : {16.0, 40.0, 64.0})
         for (int face : {0, 1})
             for (double a : {0.1, 0.5, 0.9}) {

@@ -446,8 +446,14 @@ std::string ProfileBuildSettings::validate() const {
     return "";
 }
 
-bool ProfileTables::stale(const ProfileBuildSettings& w) const {
+bool ProfileTables::stale(const ProfileBuildSettings& wanted) const {
     const ProfileBuildSettings& s = settings;
+    // what a build with `wanted` records: slabs have no distance bands and no oblique exits
+    ProfileBuildSettings w = wanted;
+    if (std::any_of(w.thickness.begin(), w.thickness.end(), [](double d) { return d != kInf; })) {
+        w.exit_bands.clear();
+        w.oblique_azimuths = 0;
+    }
     return generator_version != kProfileGeneratorVersion || s.g != w.g || s.eta != w.eta || s.thickness != w.thickness ||
            s.cos_inside != w.cos_inside || s.u_0 != w.u_0 || s.u_step != w.u_step || s.albedos != w.albedos ||
            s.bins.rho_0 != w.bins.rho_0 || s.bins.per_decade != w.bins.per_decade || s.bins.count != w.bins.count ||
