@@ -102,8 +102,6 @@ ProfileBuildSettings build_settings(const Args& a) {
     s.g = a.list("--g", s.g);
     s.eta = a.list("--eta", s.eta);
     s.thickness = a.list("--thickness", {INFINITY});
-    for (double d : s.thickness)
-        if (d != INFINITY) s.exit_bands.clear();  // slabs: no exit-distance bands
     s.photons = count(a, "--photons", s.photons);
     s.short_photons = count(a, "--short-photons", s.short_photons);
     s.albedos = int(count(a, "--albedos", std::uint64_t(s.albedos)));

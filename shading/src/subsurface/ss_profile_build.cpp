@@ -446,14 +446,18 @@ std::string ProfileBuildSettings::validate() const {
     return "";
 }
 
+ProfileBuildSettings ProfileBuildSettings::recorded() const {
+    ProfileBuildSettings r = *this;
+    if (std::any_of(thickness.begin(), thickness.end(), [](double d) { return d != kInf; })) {
+        r.exit_bands.clear();
+        r.oblique_azimuths = 0;
+    }
+    return r;
+}
+
 bool ProfileTables::stale(const ProfileBuildSettings& wanted) const {
     const ProfileBuildSettings& s = settings;
-    // what a build with `wanted` records: slabs have no distance bands and no oblique exits
-    ProfileBuildSettings w = wanted;
-    if (std::any_of(w.thickness.begin(), w.thickness.end(), [](double d) { return d != kInf; })) {
-        w.exit_bands.clear();
-        w.oblique_azimuths = 0;
-    }
+    const ProfileBuildSettings w = wanted.recorded();
     return generator_version != kProfileGeneratorVersion || s.g != w.g || s.eta != w.eta || s.thickness != w.thickness ||
            s.cos_inside != w.cos_inside || s.u_0 != w.u_0 || s.u_step != w.u_step || s.albedos != w.albedos ||
            s.bins.rho_0 != w.bins.rho_0 || s.bins.per_decade != w.bins.per_decade || s.bins.count != w.bins.count ||
@@ -470,14 +474,10 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
     if (!bad.empty()) throw std::invalid_argument("profile tables: " + bad);
     const auto t0 = std::chrono::steady_clock::now();
     auto t = std::make_shared<ProfileTables>();
-    t->settings = s;
+    t->settings = s.recorded();  // slabs: no exit-distance bands, no oblique exits
     t->faces = 1;
     for (double d : s.thickness)
         if (d != kInf) t->faces = 2;
-    if (t->faces == 2) {  // slabs: no exit-distance bands, no oblique exits
-        t->settings.exit_bands.clear();
-        t->settings.oblique_azimuths = 0;
-    }
     const int A = t->settings.oblique_azimuths;
     t->records.resize(s.g.size() * s.eta.size() * s.thickness.size() * t->faces * s.albedos);
     std::vector<double> albedo_nodes(s.albedos);

@@ -83,6 +83,9 @@ struct ProfileBuildSettings {
     std::uint64_t seed = 1;
     int threads = 0;                   // 0: all hardware threads
     std::string validate() const;
+    // The settings a build with these records (and ProfileTables::stale compares): a slab table
+    // (any finite thickness) has no distance bands and no oblique exits.
+    ProfileBuildSettings recorded() const;
 };
 
 // The tables `make brdf-data` ships (build/brdf_data/subsurface_profiles.ssp): semi-infinite,
