@@ -429,11 +429,18 @@ Rgb Subsurface::near_weight(const RadialWeight& w, double h) const {
     return out;
 }
 
+Rgb Subsurface::half_space_share(double d) const {
+    Rgb s;
+    for (int c = 0; c < 3; ++c) s[c] = std::clamp((d * dipole_.channel(c).sigma_t_prime - 4.0) / 4.0, 0.0, 1.0);
+    return s;
+}
+
 const RadialWeight* Subsurface::slab_weight(double cos_o, double d, RadialWeight* w) const {
     if (!model_->exit_weight(cos_o, w)) return nullptr;
     bool any = false;
+    const Rgb share = half_space_share(d);
     for (int c = 0; c < 3; ++c) {
-        const double s = std::clamp((d * dipole_.channel(c).sigma_t_prime - 4.0) / 4.0, 0.0, 1.0);
+        const double s = share[c];
         if (s < 1)
             for (int i = 0; i < w->nodes; ++i) w->w[i][c] = 1.0 + s * (w->w[i][c] - 1.0);
         any = any || s > 0;
@@ -477,14 +484,24 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     Rgb opposite, mb, opposite_b;
     Rgb m = slab_radiance(*slab.a, slab.b, cloud, x, n, cos_o, thickness, irradiance_here, level, &visited, wt, &opposite,
                           &mb, &opposite_b);
+    // The exit distribution for the lights' incidence (exit_ratio, the half-space's) on this
+    // face's own light, faded in with the thickness as the distance weight: the oblique exits
+    // are the first orders' beneath the face, which a slab 8 transport mfp thick has as the
+    // half-space does. (Without it a 60 mm block of Skimmilk, a slab for its 18 mm diffusion
+    // length, read +6.4 % under light at 70 degrees, ior 1; DIPOLE.md 6e.)
+    const Rgb share = half_space_share(thickness);
+    Rgb ratio;
+    for (int c = 0; c < 3; ++c) ratio[c] = 1.0 + share[c] * (exit_ratio[c] - 1.0);
     if (slab.b) {
         const double u = (thickness - slab.a->p.d) / (slab.b->p.d - slab.a->p.d);
         for (int c = 0; c < 3; ++c) {
             const double same = (m[c] - opposite[c]) * (1.0 - slab.t) + (mb[c] - opposite_b[c]) * slab.t;
             const double a = opposite[c], b = opposite_b[c];
             const double opp = a > 0 && b > 0 ? a * std::pow(b / a, u) : a * (1.0 - slab.t) + b * slab.t;
-            m[c] = same + opp;
+            m[c] = same * ratio[c] + opp;
         }
+    } else {
+        for (int c = 0; c < 3; ++c) m[c] = (m[c] - opposite[c]) * ratio[c] + opposite[c];
     }
     count_lookup(visited, true);
     return curved(m, cloud, x, n, level);

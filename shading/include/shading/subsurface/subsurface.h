@@ -232,7 +232,9 @@ public:
     // the two thickness nodes around it, the same face's part linear in ln d, the opposite
     // face's geometric in d); up to transmit_threshold() the same where transmits(); else
     // exactly the call above.
-    // (exit_ratio: for the half-space lookup only; a slab's faces keep their own exits.)
+    // (exit_ratio: the half-space's; on a slab, onto its lit face's own light, faded in with
+    // the thickness from 4 to 8 transport mfp (half_space_share); the light through the far
+    // face keeps the slab's exits.)
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio = Rgb(1.0)) const;
 
@@ -255,6 +257,9 @@ private:
     // per channel with the thickness d: whole from 8 transport mfp on, none below 4 (a thin
     // slab's exits spread otherwise). nullptr: no weight for any channel.
     const RadialWeight* slab_weight(double cos_o, double d, RadialWeight* w) const;
+    // ... that fade per channel: 0 below 4 transport mfp, 1 from 8 on. It also takes the
+    // half-space's oblique exits (exit_ratio) onto a slab face's own light.
+    Rgb half_space_share(double d) const;
     // One thickness node's radiance at x (cos_o > 0), before interpolation: the node's
     // profiles on the geometry of x's own thickness (the opposite face's lateral distance is
     // taken across that thickness, not the node's); *opposite_part: the opposite face's part
