@@ -119,3 +119,48 @@ def test_a_thick_slab_takes_the_oblique_exits_too(fork):
         exact, se = float(ref.radiance[c, 0]), float(ref.radiance_err[c, 0])
         print(f"channel {c}: {got[c]:.5f}, exact {exact:.5f} +- {se:.5f} ({100 * (got[c] / exact - 1):+.2f} %)")
         assert abs(got[c] - exact) <= PLATEAU_G0 * exact + 4 * se
+
+
+#: A wide Skin1 sheet (ior 1, g 0: the exact slab tables) under parallel light at 60 degrees, at
+#: default settings, against `volume_ref.sheet` (the same slab, 100 000 paths), relative, beyond
+#: 4 of the reference's standard errors: seen straight down on the lit side (SHEET_LIT), and
+#: straight up through it (SHEET_THROUGH; SHEET_THROUGH_THICK at 4 mfp'). Tolerances set after a
+#: first measurement (2026-12-07), from what the slab tables hold: below 4 transport mfp a lit
+#: face has no oblique exits (+3.3 % at 4 mfp'), and the light through a sheet of 4 mfp' leaves
+#: more toward the normal for slanted light than the tables' normal-incidence exits say (the
+#: reference's normal radiance falls 1.06 / 1.10 / 1.18x less than its transmitted flux):
+#: -1.1 / -8.9 / -18.7 %. Before the slab lookups took the tables' incidence factors, the lit
+#: side of 0.5 mfp' read -14.4 / -10.4 / -5.6 % and the light through 4 mfp' +37 / +78 / +152 %.
+SHEET_LIT = 0.04
+SHEET_THROUGH = 0.05
+SHEET_THROUGH_THICK = 0.25
+
+SHEET_SCENE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ orthographic location {loc} direction {dir} right <4, 0, 0> up <0, 4, 0> }}
+light_source {{ {light} * 1000 rgb 1 parallel point_at <0, 0, 0> }}
+box {{ <-100, -100, -{d}>, <100, 100, 0> texture {{ pigment {{ rgb 1 }} finish {{ ambient 0 dipole {{ {dipole} }} }} }} }}
+"""
+
+
+@pytest.mark.parametrize("mfp, through_bound", [(0.5, SHEET_THROUGH), (1.0, SHEET_THROUGH), (4.0, SHEET_THROUGH_THICK), (8.0, SHEET_THROUGH_THICK)])
+def test_slanted_light_on_a_sheet_takes_the_slab_incidence_factors(fork, mfp, through_bound):
+    theta = math.radians(60)
+    to_light = np.array([-math.sin(theta), 0.0, math.cos(theta)])
+    ss, sa = walk_bench.coefficients("Skin1", 0.0)
+    d = mfp / (ss[0] + sa[0])  # thickness in the red channel's transport mfp (mm)
+    views = np.array([(0.0, 0.0, 1.0), (0.0, 0.0, -1.0)])
+    ref = volume_ref.sheet(ss, sa, 0.0, 1.0, d, to_light, views, n_paths=100_000, seed=3)
+    for k, (name, bound) in enumerate((("lit side", SHEET_LIT), ("through", through_bound))):
+        v = views[k]
+        loc = v * 80 + (np.array([0.0, 0.0, -d]) if v[2] < 0 else 0.0)
+        text = SHEET_SCENE.format(loc=walk_bench.vec(loc), dir=walk_bench.vec(-v), light=walk_bench.vec(to_light),
+                                  d=f"{d:.6f}", dipole=walk_bench.medium_text("Skin1", 0.0, 1.0))
+        img = runner.render(text, fork, width=8, height=8, float_exr=True, threads=2).image[..., :3].astype(float)
+        assert np.isfinite(img).all()
+        got = img.reshape(-1, 3).mean(0)
+        for c in range(3):
+            exact, se = float(ref.radiance[c, k]), float(ref.radiance_err[c, k])
+            print(f"{mfp} mfp' {name} channel {c}: {got[c]:.5f}, exact {exact:.5f} +- {se:.5f} "
+                  f"({100 * (got[c] / exact - 1):+.1f} %)")
+            assert abs(got[c] - exact) <= bound * exact + 4 * se

@@ -309,21 +309,23 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
                                                                 : std::numeric_limits<double>::infinity();
     if (thickness < subsurface.slab_threshold() && subsurface.slab_single_at_lookup())
         single += slab_single_scatter(subsurface, object, x, n, to_eye, thickness);
-    // the exit distribution for the lights' incidence at x (their directions only: no shadow rays)
+    // The lights' directions at x (no shadow rays): the exit distribution for their incidence,
+    // and on a slab each face's incidence factor (a scene's few lights on the stack; more on
+    // the heap).
     Rgb exit_ratio(1.0);
-    if (subsurface.oblique_exits()) {
-        // (a scene's few lights on the stack; more on the heap)
-        constexpr int kOnStack = 16;
-        Vec3 stack[kOnStack];
-        std::vector<Vec3> heap;
-        const int lights = object.light_count();
-        Vec3* to_lights = lights <= kOnStack ? stack : (heap.resize(std::size_t(lights)), heap.data());
-        std::size_t count = 0;
-        for (int i = 0; i < lights; i++)
-            if (object.light_direction(i, x, &to_lights[count])) ++count;
-        exit_ratio = subsurface.incidence_exit_ratio(n, to_eye, to_lights, count);
+    constexpr int kOnStack = 16;
+    Vec3 stack[kOnStack];
+    std::vector<Vec3> heap;
+    LightDirections lights;
+    if (subsurface.oblique_exits() || thickness < subsurface.transmit_threshold()) {
+        const int count = object.light_count();
+        Vec3* to_lights = count <= kOnStack ? stack : (heap.resize(std::size_t(count)), heap.data());
+        for (int i = 0; i < count; i++)
+            if (object.light_direction(i, x, &to_lights[lights.count])) ++lights.count;
+        lights.to_light = to_lights;
+        if (subsurface.oblique_exits()) exit_ratio = subsurface.incidence_exit_ratio(n, to_eye, to_lights, lights.count);
     }
-    return subsurface.radiance(*cloud, x, n, to_eye, e, thickness, exit_ratio) + single;
+    return subsurface.radiance(*cloud, x, n, to_eye, e, thickness, exit_ratio, lights) + single;
 }
 
 std::vector<std::string> finish_statistics() {

@@ -74,6 +74,13 @@ struct SlabProfiles {
     // face (the tables' R and T faces where they cover the channel, else the model's
     // half-space factor).
     std::function<void(double cos_o, Rgb* same, Rgb* opposite)> exit;
+    // Empty: light entering at outside cosine cos_i diffuses as into the half-space (the
+    // multipole). Set by make_exact_slab_profiles: per channel, the tables' incidence factor of
+    // the face light entering there leaves by (`same`: the face it entered, else the opposite
+    // one) over the half-space's, whose factor the samples' light already holds (1 for channels
+    // without tables). A thin slab scatters more of a slanted beam (0.25 mfp': 1.65x at 60
+    // degrees) and passes less of it through a thick one (8 mfp': 0.67x): DIPOLE.md 6a.
+    std::function<Rgb(double cos_i, bool same)> incidence;
     // Per channel: T leaves single scattering out (1; the exact tables' channels, made with
     // single_traced: the finish adds the slab's own single scattering) or holds every order (0).
     Rgb t_single_apart;

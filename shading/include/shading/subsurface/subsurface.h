@@ -64,6 +64,13 @@ namespace shading {
 // The most depths per channel `single_scatter_samples` takes (each costs a light path per light).
 constexpr int kMaxSingleScatterPoints = 256;
 
+// The directions toward the lights at a point (unit vectors), what the lookups' incidence terms
+// are taken for: POV's lights as the finish found them, without shadow rays.
+struct LightDirections {
+    const Vec3* to_light = nullptr;
+    std::size_t count = 0;
+};
+
 struct SubsurfaceSettings {
     double spacing = 0;        // base sample spacing in scene units; 0: automatic (sample_spacing())
     double max_angle = 0.7;    // hierarchical error threshold (PointCloud::far_exitance)
@@ -235,8 +242,19 @@ public:
     // (exit_ratio: the half-space's; on a slab, onto its lit face's own light, faded in with
     // the thickness from 4 to 8 transport mfp (half_space_share); the light through the far
     // face keeps the slab's exits.)
+    // lights: the directions toward the lights at x (no shadow rays): a slab lookup takes each
+    // face's incidence factor for them (slab_incidence).
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                 const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio = Rgb(1.0)) const;
+                 const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio = Rgb(1.0),
+                 const LightDirections& lights = LightDirections()) const;
+    // A slab's incidence factors over the half-space's (SlabProfiles::incidence; the samples'
+    // light holds the half-space's) for the lights at x: on x's face (normal n) for the light
+    // that entered there, on the opposite face (normal -n) for the light through it; each the
+    // mean over the lights facing it weighted as the samples' light is (entry factor x cos),
+    // faded to 1 as their largest cosine falls from kObliqueFade to 0 (past a terminator the
+    // light entered elsewhere); 1 where no light faces a face or the profiles have none.
+    void slab_incidence(const SlabProfiles& p, const Vec3& n, const LightDirections& lights, Rgb* same,
+                        Rgb* opposite) const;
 
     // At a point between slab_threshold() and transmit_threshold() thick: whether the light
     // through its far face could exceed kSlabTolerance of its own face's (T_total at its
@@ -267,8 +285,8 @@ private:
     // the cloud, into *result_b and *opposite_part_b.
     Rgb slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud, const Vec3& x,
                       const Vec3& n, double cos_o, double thickness, const Rgb& irradiance_here, int level,
-                      std::size_t* visited, const RadialWeight* weight, Rgb* opposite_part, Rgb* result_b,
-                      Rgb* opposite_part_b) const;
+                      std::size_t* visited, const RadialWeight* weight, const LightDirections& lights,
+                      double flat, Rgb* opposite_part, Rgb* result_b, Rgb* opposite_part_b) const;
     Dipole dipole_;
     SubsurfaceSettings settings_;
     std::shared_ptr<const RadialProfile> model_;
@@ -284,6 +302,8 @@ private:
     // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window
     // of its base spacing, or of x's lookup level `level` where that is coarser).
     Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const;
+    // ... for the mean curvature H about x, already taken.
+    Rgb curved_by(const Rgb& m, double H) const;
     // The window (spacing) over which the curvature and the shift field's divergence are read
     // about a point of lookup level `level`: the base spacing's, whatever the level.
     static double curvature_window(const PointCloud& cloud, int level);
