@@ -244,16 +244,13 @@ namespace {
 // mfp). Where the tables' transmitted light is too faint for their oblique runs (below
 // kTransmitTabulated) their incidence factor is photon noise (0.05 ... 1.5 at one incidence);
 // where both hold (T 0.05 of the light entering) the two agree within 3-8 % (DIPOLE.md 6a).
-double transmit_incidence_model(double mu, double d, double kappa, double zb) {
-    auto through = [&](double m) {
-        auto depth = [&](double a) {  // integral over [0, d] of e^(-z a / m) / m
-            const double x = d * a / m;
-            return std::fabs(x) < 1e-12 ? d / m : -std::expm1(-x) / a;
-        };
-        return std::exp(kappa * zb) * depth(1.0 - kappa * m) - std::exp(-kappa * zb) * depth(1.0 + kappa * m);
+// transmit_through(mu, ...) / transmit_through(1, ...) is that ratio.
+double transmit_through(double mu, double d, double kappa, double zb) {
+    auto depth = [&](double a) {  // integral over [0, d] of e^(-z a / mu) / mu
+        const double x = d * a / mu;
+        return std::fabs(x) < 1e-12 ? d / mu : -std::expm1(-x) / a;
     };
-    const double normal = through(1.0);
-    return normal > 0 && mu > 0 ? through(std::min(mu, 1.0)) / normal : 1.0;
+    return std::exp(kappa * zb) * depth(1.0 - kappa * mu) - std::exp(-kappa * zb) * depth(1.0 + kappa * mu);
 }
 
 // The tables' transmitted incidence factor in full from this share of the light entering, the
@@ -276,7 +273,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         SlabChannel multipole;
         // the transmitted incidence factor: the tables' share of it (the rest the model's),
         // the model's decay rate and extrapolation distance (transport mfp), the slab's thickness
-        double t_tabulated = 1, kappa = 0, zb = 0, d = 0;
+        double t_tabulated = 1, kappa = 0, zb = 0, d = 0, t_normal = 0;
     };
     auto ch = std::make_shared<std::array<Channel, 3>>();
     SlabProfiles out;
@@ -314,6 +311,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
                 x.kappa = transport_decay_rate(half->alpha_prime(), model.g(c));
                 x.zb = x.multipole.empty ? 0.0 : x.multipole.zb * st;
                 x.d = d * st;
+                x.t_normal = transmit_through(1.0, x.d, x.kappa, x.zb);
             }
             out.t_single_apart[c] = single_traced ? 1.0 : 0.0;
             if (x.r->total() > 0) cutoff = std::max(cutoff, std::min(x.r->radius_containing(1.0 - 1e-6), 1e6) / st);
@@ -389,7 +387,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
                 if (!same && x.t_tabulated < 1) {
                     const double ci = std::clamp(cos_i, 0.0, 1.0);
                     const double mu = std::sqrt(std::max(0.0, 1.0 - (1.0 - ci * ci) / (eta * eta)));  // refracted
-                    const double m = transmit_incidence_model(mu, x.d, x.kappa, x.zb);
+                    const double m = x.t_normal > 0 && mu > 0 ? transmit_through(mu, x.d, x.kappa, x.zb) / x.t_normal : 1.0;
                     f = x.t_tabulated > 0 && f > 0 ? std::exp(x.t_tabulated * std::log(f) + (1 - x.t_tabulated) * std::log(m)) : m;
                 }
                 v[c] = f / base;

@@ -409,27 +409,36 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     return curved(m, cloud, x, n, level) * model_->exit_factor(cos_o) * exit_ratio;
 }
 
-void Subsurface::slab_incidence(const SlabProfiles& p, const Vec3& n, const LightDirections& lights, Rgb* same,
-                                Rgb* opposite) const {
+Subsurface::SlabLights::SlabLights(const RadialProfile& model, const Vec3& n, const LightDirections& lights) {
+    if (lights.count > kOnStack) heap_.resize(lights.count);
+    lit_ = lights.count > kOnStack ? heap_.data() : stack_;
+    for (std::size_t i = 0; i < lights.count; ++i) {
+        const double c = dot(n, lights.to_light[i]);
+        if (c == 0 || !std::isfinite(c)) continue;  // (in the face's plane: neither face's)
+        Lit& l = lit_[count_++];
+        l.same = c > 0;
+        l.cos = std::fabs(c);
+        l.w = model.entry_factor(l.cos) * l.cos;  // as the samples' light holds it
+        largest_[l.same ? 0 : 1] = std::max(largest_[l.same ? 0 : 1], l.cos);
+    }
+}
+
+void Subsurface::slab_incidence(const SlabProfiles& p, const SlabLights& lights, Rgb* same, Rgb* opposite) const {
     *same = *opposite = Rgb(1.0);
     if (!p.incidence) return;
+    Rgb num[2], den[2];
+    for (std::size_t i = 0; i < lights.count_; ++i) {
+        const SlabLights::Lit& l = lights.lit_[i];
+        const int side = l.same ? 0 : 1;
+        num[side] += l.w * p.incidence(l.cos, l.same);
+        den[side] += l.w;
+    }
     for (int side = 0; side < 2; ++side) {
-        const double sign = side == 0 ? 1.0 : -1.0;
-        Rgb num(0.0), den(0.0);
-        double largest = 0;
-        for (std::size_t i = 0; i < lights.count; ++i) {
-            const double cos_i = sign * dot(n, lights.to_light[i]);
-            if (!(cos_i > 0)) continue;
-            largest = std::max(largest, cos_i);
-            const Rgb w = model_->entry_factor(cos_i) * cos_i;
-            num += w * p.incidence(cos_i, side == 0);
-            den += w;
-        }
-        if (!(largest > 0)) continue;
-        const double fade = std::min(1.0, largest / kObliqueFade);
+        if (!(lights.largest_[side] > 0)) continue;
+        const double fade = std::min(1.0, lights.largest_[side] / kObliqueFade);
         Rgb& out = side == 0 ? *same : *opposite;
         for (int c = 0; c < 3; ++c)
-            if (den[c] > 0) out[c] = 1.0 + fade * (num[c] / den[c] - 1.0);
+            if (den[side][c] > 0) out[c] = 1.0 + fade * (num[side][c] / den[side][c] - 1.0);
     }
 }
 
@@ -511,7 +520,8 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     // sheet's, lit where x is; on a ball (|H| d = 2) the light through it entered at every
     // incidence, and x's own says nothing of it (the balls of dipole_preset, two lights, against
     // the walk: 0.4-0.9 % more off with the factors taken whole). Faded out as |H| d goes to 1.
-    const bool need_h = curving_ || (lights.count > 0 && (slab.a->p.incidence || (slab.b && slab.b->p.incidence)));
+    const bool incident = lights.count > 0 && (slab.a->p.incidence || (slab.b && slab.b->p.incidence));
+    const bool need_h = curving_ || incident;
     const double H = need_h ? cloud.mean_curvature_about(x, n, curvature_window(cloud, level)) : 0.0;
     const double flat = std::clamp(1.0 - std::fabs(H) * thickness, 0.0, 1.0);
     check_resolved(cloud, x, cloud.level_spacing(level), irradiance_here, settings_.tolerance);
@@ -519,7 +529,8 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     RadialWeight weight;
     const RadialWeight* wt = slab_weight(cos_o, thickness, &weight);
     Rgb opposite, mb, opposite_b;
-    Rgb m = slab_radiance(*slab.a, slab.b, cloud, x, n, cos_o, thickness, irradiance_here, level, &visited, wt, lights,
+    const SlabLights lit(*model_, n, incident ? lights : LightDirections());
+    Rgb m = slab_radiance(*slab.a, slab.b, cloud, x, n, cos_o, thickness, irradiance_here, level, &visited, wt, lit,
                           flat, &opposite, &mb, &opposite_b);
     // The exit distribution for the lights' incidence (exit_ratio, the half-space's) on this
     // face's own light, faded in with the thickness as the distance weight: the oblique exits
@@ -594,7 +605,7 @@ bool Subsurface::transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n
 Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud,
                               const Vec3& x, const Vec3& n, double cos_o, double thickness, const Rgb& irradiance_here,
                               int level, std::size_t* visited, const RadialWeight* weight,
-                              const LightDirections& lights, double flat, Rgb* opposite_part, Rgb* result_b,
+                              const SlabLights& lights, double flat, Rgb* opposite_part, Rgb* result_b,
                               Rgb* opposite_part_b) const {
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
     Rgb near_same[2], near_opposite[2];
@@ -625,7 +636,7 @@ Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const SlabCache::Node
         else
             same_exit = opposite_exit = model_->exit_factor(cos_o);
         Rgb same_in, opposite_in;
-        slab_incidence(p, n, lights, &same_in, &opposite_in);
+        slab_incidence(p, lights, &same_in, &opposite_in);
         for (int c = 0; c < 3; ++c) {
             same_in[c] = 1.0 + flat * (same_in[c] - 1.0);
             opposite_in[c] = 1.0 + flat * (opposite_in[c] - 1.0);

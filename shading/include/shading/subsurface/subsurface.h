@@ -39,6 +39,7 @@
 #pragma once
 
 #include <memory>
+#include <vector>
 #include <mutex>
 #include <unordered_set>
 #include <string>
@@ -253,8 +254,29 @@ public:
     // mean over the lights facing it weighted as the samples' light is (entry factor x cos),
     // faded to 1 as their largest cosine falls from kObliqueFade to 0 (past a terminator the
     // light entered elsewhere); 1 where no light faces a face or the profiles have none.
-    void slab_incidence(const SlabProfiles& p, const Vec3& n, const LightDirections& lights, Rgb* same,
-                        Rgb* opposite) const;
+    // (The lights facing either face, with their weights: made once per lookup, read by both
+    // thickness nodes.)
+    class SlabLights {
+    public:
+        SlabLights(const RadialProfile& model, const Vec3& n, const LightDirections& lights);
+        SlabLights(const SlabLights&) = delete;
+        SlabLights& operator=(const SlabLights&) = delete;
+
+    private:
+        friend class Subsurface;
+        struct Lit {
+            double cos = 0;
+            bool same = true;  // faces n (x's own face), else -n
+            Rgb w;
+        };
+        static constexpr std::size_t kOnStack = 8;
+        Lit stack_[kOnStack];
+        std::vector<Lit> heap_;
+        Lit* lit_ = stack_;
+        std::size_t count_ = 0;
+        double largest_[2] = {0, 0};
+    };
+    void slab_incidence(const SlabProfiles& p, const SlabLights& lights, Rgb* same, Rgb* opposite) const;
 
     // At a point between slab_threshold() and transmit_threshold() thick: whether the light
     // through its far face could exceed kSlabTolerance of its own face's (T_total at its
@@ -285,7 +307,7 @@ private:
     // the cloud, into *result_b and *opposite_part_b.
     Rgb slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud, const Vec3& x,
                       const Vec3& n, double cos_o, double thickness, const Rgb& irradiance_here, int level,
-                      std::size_t* visited, const RadialWeight* weight, const LightDirections& lights,
+                      std::size_t* visited, const RadialWeight* weight, const SlabLights& lights,
                       double flat, Rgb* opposite_part, Rgb* result_b, Rgb* opposite_part_b) const;
     Dipole dipole_;
     SubsurfaceSettings settings_;
