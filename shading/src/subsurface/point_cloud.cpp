@@ -86,8 +86,14 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, con
         for (std::size_t l = 64 * c; l < std::min(leaves.size(), 64 * (c + 1)); ++l) {
             const int leaf = leaves[l];
             const Node& nd = nodes_[leaf];
-            double H = 0;
-            for (int i = nd.first; i < nd.first + nd.count; ++i) H = std::max(H, points_[i].spacing);
+            // (from its lit points' spacing; a leaf with none lit from its finest: unlit points
+            // bring no light to any window, so their spacing does not bound it)
+            double H = 0, own_finest = kInf;
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                own_finest = std::min(own_finest, points_[i].spacing);
+                if (points_[i].irradiance.max_component() > 0) H = std::max(H, points_[i].spacing);
+            }
+            if (!(H > 0)) H = own_finest;
             while (H < coarsest) {
                 const double r = 3.0 * H;
                 int start = leaf;
@@ -616,7 +622,7 @@ double PointCloud::max_spacing_within(int start, const float* lo, const float* h
             continue;
         if (nd.child < 0) {
             for (int i = nd.first; i < nd.first + nd.count; ++i) {
-                if (!(points_[i].spacing > best)) continue;
+                if (!(points_[i].spacing > best) || !(points_[i].irradiance.max_component() > 0)) continue;
                 const Vec3& p = points_[i].p;
                 const double dx = std::max({double(lo[0]) - p.x, 0.0, p.x - double(hi[0])});
                 const double dy = std::max({double(lo[1]) - p.y, 0.0, p.y - double(hi[1])});

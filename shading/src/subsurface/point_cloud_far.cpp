@@ -59,6 +59,22 @@ Rgb PointCloud::far_exitance_sided_exact(const RdProfile& same, const RdProfile&
     return exact_sum<true>(same, &transmit, x, nx, d, r0, h, near_opposite, nullptr);
 }
 
+namespace {
+
+// The window's near part over a plane: the integral of (1 - w) over the disc about x (w:
+// far_window, 0 inside r0 - h, a quintic ramp to 1 at r0 + h): pi a^2 + 2 pi h a + (8/7) pi h^2,
+// a = r0 - h. The opposite face's near field lights the part of T inside the window by its
+// points' mean irradiance there, taken over this area where the points cover less of it (the
+// window reaching past a sheet's edge, or over its shadow: unlit nodes are not visited): over
+// the points' own area alone, a back-lit sheet read its full light up to its edge, where half
+// the window is no sheet (a comb of steps 1-2 spacings inside the edge, +25 % at it).
+double near_disc_area(double r0, double h) {
+    const double a = std::max(0.0, r0 - h);
+    return kPi * (a * a + 2.0 * h * a + (8.0 / 7.0) * h * h);
+}
+
+}  // namespace
+
 template <bool kSided>
 Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const Vec3& x, const Vec3& nx, double d,
                         double r0, double h, double max_angle, double cut_same2, const Rgb& near_opposite,
@@ -243,6 +259,7 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
     }
     if (visited) *visited += opened;
     if (kSided && near_area > 0) {
+        near_area = std::max(near_area, near_disc_area(r0, h));
         const Rgb t = near_opposite * near_flux * (1.0 / near_area);
         sum += t;
         opp_sum += t;
@@ -280,7 +297,7 @@ Rgb PointCloud::exact_sum(const RdProfile& same, const RdProfile* transmit, cons
             near_flux += s.irradiance * ((1.0 - w) * s.area);
         }
     }
-    if (near_area > 0) sum += near_opposite * near_flux * (1.0 / near_area);
+    if (near_area > 0) sum += near_opposite * near_flux * (1.0 / std::max(near_area, near_disc_area(r0, h)));
     return sum;
 }
 
