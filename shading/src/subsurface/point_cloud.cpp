@@ -54,9 +54,10 @@ PointCloud::PointCloud(std::vector<SurfacePoint> points, const NearFn& near, con
         finish(parallel);
         return;
     }
-    // Each point's lookup spacing: the fixed point of H <- max spacing within 3H (from its own
-    // spacing up): the window's ramp [H, 3H] around a lookup there then holds no sample coarser
-    // than H. Found once per leaf for the leaf's box (so a point may take the coarser value of
+    // Each point's lookup spacing: the fixed point of H <- max spacing of the lit samples within
+    // 3H (from its own spacing up, or its leaf's finest where none of it is lit): the window's
+    // ramp [H, 3H] around a lookup there then holds no lit sample coarser than H (an unlit one
+    // brings no light to it). Found once per leaf for the leaf's box (so a point may take the coarser value of
     // a neighbour up to a leaf away). Levels are the distinct values, coarsest first.
     // Each query starts at the smallest node whose octree cell holds the leaf's box widened
     // by 3H: every point that close lies under it (cells, unlike the nodes' tight bounds,

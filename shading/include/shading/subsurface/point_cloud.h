@@ -52,9 +52,10 @@ public:
     // Near reflectance of a spacing h (RdProfile::near_reflectance).
     using NearFn = std::function<Rgb(double h)>;
     // Points of possibly different spacings (SurfacePoint::spacing > 0). Each point gets a
-    // lookup spacing H >= its own: the smallest H such that no point within 3H of its leaf's
-    // box has a spacing above H (then the window's ramp [H, 3H] is sampled at least as finely
-    // as H); found in parallel through `parallel` if given.
+    // lookup spacing H >= its own (its leaf's lit points', or its leaf's finest where none is
+    // lit): the smallest H such that no lit point (E_t > 0) within 3H of its leaf's box has a
+    // spacing above H (then the window's ramp [H, 3H] is sampled at least as finely as H where
+    // there is light to sample); found in parallel through `parallel` if given.
     PointCloud(std::vector<SurfacePoint> points, const NearFn& near, const ParallelFor* parallel = nullptr);
     // Every point at one spacing h (SurfacePoint::spacing ignored), near = near_reflectance(h).
     PointCloud(std::vector<SurfacePoint> points, double spacing, const Rgb& near = Rgb(0.0));

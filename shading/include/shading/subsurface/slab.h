@@ -78,7 +78,7 @@ struct SlabProfiles {
     // multipole). Set by make_exact_slab_profiles: per channel, the tables' incidence factor of
     // the face light entering there leaves by (`same`: the face it entered, else the opposite
     // one) over the half-space's, whose factor the samples' light already holds (1 for channels
-    // without tables). A thin slab scatters more of a slanted beam (0.25 mfp': 1.65x at 60
+    // without tables). A thin slab scatters more of a slanted beam (0.5 mfp': 1.65x at 60
     // degrees) and passes less of it through a thick one (8 mfp': 0.67x): DIPOLE.md 6a.
     std::function<Rgb(double cos_i, bool same)> incidence;
     // Per channel: T leaves single scattering out (1; the exact tables' channels, made with

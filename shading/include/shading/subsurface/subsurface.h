@@ -248,6 +248,29 @@ public:
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio = Rgb(1.0),
                  const LightDirections& lights = LightDirections()) const;
+
+    // At a point between slab_threshold() and transmit_threshold() thick: whether the light
+    // through its far face could exceed kSlabTolerance of its own face's (T_total at its
+    // thickness times the cloud's brightest sample against R_total times its own E_t, in any
+    // channel): a back-lit face, a shadowed one, a dark side.
+    bool transmits(const PointCloud& cloud, double thickness, const Rgb& irradiance_here) const;
+    // ... and at x (normal n): a sample of the far face within half the thickness of x - n d
+    // is that bright (PointCloud::brighter_within).
+    bool transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
+                   const Rgb& irradiance_here) const;
+
+private:
+    // The mean of the exit weight w over the near field of spacing h (its share of Rd, (1 -
+    // window) Rd 2 pi r on [0, 3h]; 8-point Gauss-Legendre on [0, h/8], [h/8, h/2], [h/2, h]
+    // and the ramp [h, 3h]): the factor of level_near's part.
+    Rgb near_weight(const RadialWeight& w, double h) const;
+    // The half-space's exit weight for a slab's own face (RadialProfile::exit_weight), faded in
+    // per channel with the thickness d: whole from 8 transport mfp on, none below 4 (a thin
+    // slab's exits spread otherwise). nullptr: no weight for any channel.
+    const RadialWeight* slab_weight(double cos_o, double d, RadialWeight* w) const;
+    // ... that fade per channel: 0 below 4 transport mfp, 1 from 8 on. It also takes the
+    // half-space's oblique exits (exit_ratio) onto a slab face's own light.
+    Rgb half_space_share(double d) const;
     // A slab's incidence factors over the half-space's (SlabProfiles::incidence; the samples'
     // light holds the half-space's) for the lights at x: on x's face (normal n) for the light
     // that entered there, on the opposite face (normal -n) for the light through it; each the
@@ -277,29 +300,6 @@ public:
         double largest_[2] = {0, 0};
     };
     void slab_incidence(const SlabProfiles& p, const SlabLights& lights, Rgb* same, Rgb* opposite) const;
-
-    // At a point between slab_threshold() and transmit_threshold() thick: whether the light
-    // through its far face could exceed kSlabTolerance of its own face's (T_total at its
-    // thickness times the cloud's brightest sample against R_total times its own E_t, in any
-    // channel): a back-lit face, a shadowed one, a dark side.
-    bool transmits(const PointCloud& cloud, double thickness, const Rgb& irradiance_here) const;
-    // ... and at x (normal n): a sample of the far face within half the thickness of x - n d
-    // is that bright (PointCloud::brighter_within).
-    bool transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
-                   const Rgb& irradiance_here) const;
-
-private:
-    // The mean of the exit weight w over the near field of spacing h (its share of Rd, (1 -
-    // window) Rd 2 pi r on [0, 3h]; 8-point Gauss-Legendre on [0, h/8], [h/8, h/2], [h/2, h]
-    // and the ramp [h, 3h]): the factor of level_near's part.
-    Rgb near_weight(const RadialWeight& w, double h) const;
-    // The half-space's exit weight for a slab's own face (RadialProfile::exit_weight), faded in
-    // per channel with the thickness d: whole from 8 transport mfp on, none below 4 (a thin
-    // slab's exits spread otherwise). nullptr: no weight for any channel.
-    const RadialWeight* slab_weight(double cos_o, double d, RadialWeight* w) const;
-    // ... that fade per channel: 0 below 4 transport mfp, 1 from 8 on. It also takes the
-    // half-space's oblique exits (exit_ratio) onto a slab face's own light.
-    Rgb half_space_share(double d) const;
     // One thickness node's radiance at x (cos_o > 0), before interpolation: the node's
     // profiles on the geometry of x's own thickness (the opposite face's lateral distance is
     // taken across that thickness, not the node's); *opposite_part: the opposite face's part
