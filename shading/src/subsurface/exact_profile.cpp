@@ -385,8 +385,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
                 if (!(base > 0)) continue;
                 double f = (same ? x.r : x.t)->entry_factor(cos_i);
                 if (!same && x.t_tabulated < 1) {
-                    const double ci = std::clamp(cos_i, 0.0, 1.0);
-                    const double mu = std::sqrt(std::max(0.0, 1.0 - (1.0 - ci * ci) / (eta * eta)));  // refracted
+                    const double mu = refracted_cos(cos_i, eta);
                     const double m = x.t_normal > 0 && mu > 0 ? transmit_through(mu, x.d, x.kappa, x.zb) / x.t_normal : 1.0;
                     f = x.t_tabulated > 0 && f > 0 ? std::exp(x.t_tabulated * std::log(f) + (1 - x.t_tabulated) * std::log(m)) : m;
                 }

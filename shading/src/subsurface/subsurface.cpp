@@ -334,6 +334,18 @@ void check_resolved(const PointCloud& cloud, const Vec3& x, double h, const Rgb&
         count_unresolved(h, x);
 }
 
+// 1 + fade (num / den - 1) per channel, 1 where den is 0: the mean of a ratio over the lights
+// facing a face (weights summed in den), faded to 1 as their largest cosine falls from
+// kObliqueFade to 0 (at a terminator and past it the light at x entered elsewhere).
+Rgb faded_ratio(const Rgb& num, const Rgb& den, double largest) {
+    Rgb out(1.0);
+    if (!(largest > 0)) return out;
+    const double fade = std::min(1.0, largest / Subsurface::kObliqueFade);
+    for (int c = 0; c < 3; ++c)
+        if (den[c] > 0) out[c] = 1.0 + fade * (num[c] / den[c] - 1.0);
+    return out;
+}
+
 }  // namespace
 
 Rgb Subsurface::incidence_exit_ratio(const Vec3& n, const Vec3& to_eye, const Vec3* to_lights, std::size_t count) const {
@@ -358,12 +370,7 @@ Rgb Subsurface::incidence_exit_ratio(const Vec3& n, const Vec3& to_eye, const Ve
         den += w;
     }
     if (!(largest > 0)) return Rgb(1.0);
-    const Rgb base = model_->exit_factor(cos_o);
-    const double fade = std::min(1.0, largest / kObliqueFade);
-    Rgb out(1.0);
-    for (int c = 0; c < 3; ++c)
-        if (den[c] > 0 && base[c] > 0) out[c] = 1.0 + fade * (num[c] / (den[c] * base[c]) - 1.0);
-    return out;
+    return faded_ratio(num, den * model_->exit_factor(cos_o), largest);  // over the normal exit factor
 }
 
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
@@ -433,13 +440,8 @@ void Subsurface::slab_incidence(const SlabProfiles& p, const SlabLights& lights,
         num[side] += l.w * p.incidence(l.cos, l.same);
         den[side] += l.w;
     }
-    for (int side = 0; side < 2; ++side) {
-        if (!(lights.largest_[side] > 0)) continue;
-        const double fade = std::min(1.0, lights.largest_[side] / kObliqueFade);
-        Rgb& out = side == 0 ? *same : *opposite;
-        for (int c = 0; c < 3; ++c)
-            if (den[side][c] > 0) out[c] = 1.0 + fade * (num[side][c] / den[side][c] - 1.0);
-    }
+    *same = faded_ratio(num[0], den[0], lights.largest_[0]);
+    *opposite = faded_ratio(num[1], den[1], lights.largest_[1]);
 }
 
 Rgb Subsurface::near_weight(const RadialWeight& w, double h) const {
