@@ -17,10 +17,12 @@ it 1.9 / 2.6 / 2.4 %.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
 from harness.core import runner
+from harness.core.paths import REPO_ROOT
 from harness.reference import volume_ref
 from harness.reports import walk_bench
 
@@ -119,3 +121,33 @@ def test_directional_sphere_keeps_its_flux(fork):
         print(f"channel {c}: directional {got[c]:.3f}, reference {ref.flux[c]:.3f} +- {ref.flux_err[c]:.3f} "
               f"({100 * (got[c] / ref.flux[c] - 1):+.2f} %)")
         assert abs(got[c] - ref.flux[c]) < SPHERE_FLUX * ref.flux[c] + 4 * ref.flux_err[c]
+
+
+def test_directional_lookups_survive_objects_without_a_cloud(fork):
+    """Single scattering from upstream reads the cloud's light about points along a line; on an
+    object whose cloud has no points (an unbounded plane; a sphere far smaller than its medium's
+    diffusion length) the nearest-point fallback read the octree's root that was not there and
+    POV crashed (exit -11) on all three scenes below. Now they render, and as the radially
+    symmetric profile does: a cloud without points has no light to shift (within float rounding)."""
+    presets = re.findall(r"^#declare\s+(F_Dipole_\w+)\s*=\s*Dipole_Finish\(\"([^\"]+)\"\)",
+                         (REPO_ROOT / "scenes/include/dipole_media.inc").read_text(), re.MULTILINE)
+    assert len(presets) == 47
+    spheres = "\n".join(f'sphere {{ <{(i % 8) * 2.2}, {-(i // 8) * 2.2}, 0>, 1 finish {{ dipole {{ "{name}" '
+                        f"mm_per_unit 2 DIR }} }} }}" for i, (_, name) in enumerate(presets))
+    scenes = {
+        "plane": """plane { y, 0 finish { ambient 0 dipole { "Marble" DIR } } }""",
+        "empty cloud": """sphere { 0, 1 finish { dipole { sigma_s 2 anisotropy 0.99 sigma_a 0.01 ior 1.33 DIR } } }""",
+        "presets": spheres,
+    }
+    cameras = {"plane": "camera { location <0, 2, -5> look_at 0 }",
+               "empty cloud": "camera { location <0, 0, -5> look_at 0 }",
+               "presets": "camera { orthographic location <7.7, -5.5, -20> direction z right x * 17.6 up y * 13.2 }"}
+    for name, body in scenes.items():
+        imgs = {}
+        for mode in ("on",) if name == "presets" else ("on", "off"):
+            text = ("#version 3.7;\nglobal_settings { assumed_gamma 1.0 }\n" + cameras[name] +
+                    "\nlight_source { <-20, 30, -40> rgb 1 }\n" + body.replace("DIR", f"directional {mode}") + "\n")
+            imgs[mode] = runner.render(text, fork, width=64, height=48, float_exr=True, threads=2).image[..., :3]
+            assert np.isfinite(imgs[mode]).all(), (name, mode)
+        if name != "presets":  # (the presets' spheres have clouds: shifted, they differ)
+            assert np.abs(imgs["on"] - imgs["off"]).max() <= 1e-6 * max(1e-30, float(imgs["off"].max())) + 1e-7, name

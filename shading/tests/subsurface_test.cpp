@@ -176,6 +176,20 @@ TEST(SubsurfaceDirectional, UniformlyLitPlaneWithShiftsGivesTheTotalEverywhere) 
     std::printf("uniformly lit plane, shifted: worst %.5f of Rd_total\n", worst_uniform);
 }
 
+// A cloud without points (an unbounded object's, or one far smaller than its medium's diffusion
+// length): every query answers "nothing here" (irradiance_about's nearest-point fallback read the
+// octree's root that was not there, and POV crashed with `directional on`).
+TEST(SubsurfaceDirectional, ACloudWithoutPointsAnswersEveryQuery) {
+    const Subsurface s(marble(), SubsurfaceSettings{});
+    const PointCloud c(std::vector<SurfacePoint>{}, 0.1);
+    const Vec3 x(0.3, -0.2, 0.1), n(0, 0, 1);
+    EXPECT_EQ(c.irradiance_about(x, 0.1).max_component(), 0.0);
+    EXPECT_EQ(c.lookup_level(x), 0);
+    EXPECT_EQ(c.lookup_level_shifted(x), 0);
+    Rgb near(-1.0);
+    EXPECT_EQ(c.far_exitance_shifted(s.profile(), x, n, 0.2, 0.1, 0.2, 1e9, &near, nullptr).max_component(), 0.0);
+}
+
 // The shift field's divergence about a point (PointCloud::shift_divergence_about): the trace of
 // the linear field's gradient across the tangent plane, per channel; exact for a linear field.
 // Unlit points (no shift) stay out of the fit: a half-lit plane reads its lit half's field.

@@ -639,6 +639,7 @@ double PointCloud::max_spacing_within(int start, const float* lo, const float* h
 
 int PointCloud::nearest(const Vec3& x) const {
     int best = -1;
+    if (nodes_.empty()) return best;  // (an unbounded object's or an unlit one's cloud has no points)
     double best_d2 = kInf;
     int stack[8 * kMaxDepth + 16];
     int top = 0;

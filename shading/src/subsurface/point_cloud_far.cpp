@@ -425,7 +425,7 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
     };
     if (kExact) {
         for (int i = 0; i < int(points_.size()); ++i) add_point(i);
-    } else {
+    } else if (!nodes_.empty()) {
         int stack[8 * kMaxDepth + 16];
         int top = 0;
         stack[top++] = 0;
