@@ -223,7 +223,7 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
 constexpr double kSlabSingleNegligible = 1e-6;
 
 Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                        double d) {
+                        double d, const Rgb* upstream) {
     const Frame frame = Frame::from_normal(n);
     const Vec3 wo = frame.to_local(to_eye);
     if (!(wo.z > 0)) return Rgb(0.0);
@@ -239,9 +239,11 @@ Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x
             const Rgb half = dipole.single_scatter_brdf(wo, wi);
             // (less than the half-space's where the far face cuts the depth short, more where it
             // reflects much back: thin, at eta > 1 and grazing angles)
-            const Rgb f = dipole.single_scatter_slab(wo, wi, d) - half;
-            if (std::max({std::fabs(f.r), std::fabs(f.g), std::fabs(f.b)}) > kSlabSingleNegligible * half.max_component())
+            Rgb f = dipole.single_scatter_slab(wo, wi, d) - half;
+            if (std::max({std::fabs(f.r), std::fabs(f.g), std::fabs(f.b)}) > kSlabSingleNegligible * half.max_component()) {
+                if (upstream) f = f * upstream[i];
                 out += object.light_colour(i, x, n, to_light) * f * (kPi * wi.z);
+            }
         }
         if (through && object.light_direction(i, far, &to_light) && dot(to_light, n) < 0) {
             const Vec3 wi = frame.to_local(to_light);
@@ -276,6 +278,12 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     Sampler sampler(object);
     const PointCloud* cloud = nullptr;
     Rgb single(0.0);
+    // Directional lookups: each light's upstream ratio, for the thin slab's correction below (a
+    // scene's few lights on the stack; more on the heap).
+    constexpr int kOnStack = 16;
+    Rgb ratio_stack[kOnStack];
+    std::vector<Rgb> ratio_heap;
+    Rgb* ratios = nullptr;
     if (subsurface.traced_single_scatter()) {
         // single scattering along the view ray inside the object's own shape (any light
         // direction, curved faces, the back of a sheet): RandomWalk::single_scatter
@@ -288,7 +296,12 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
         const Frame frame = Frame::from_normal(n);
         const Vec3 wo = frame.to_local(to_eye);
         const bool upstream = subsurface.directional();
-        if (upstream) cloud = &subsurface.cloud(key, sampler);
+        if (upstream) {
+            cloud = &subsurface.cloud(key, sampler);
+            const int count = object.light_count();
+            ratios = count <= kOnStack ? ratio_stack : (ratio_heap.resize(std::size_t(count)), ratio_heap.data());
+            std::fill(ratios, ratios + count, Rgb(1.0));
+        }
         for (int i = 0, lights = object.light_count(); i < lights; i++) {
             Vec3 to_light;
             if (!object.light_direction(i, x, &to_light)) continue;
@@ -296,7 +309,7 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
             if (!(cos_i > 0)) continue;
             Rgb f = subsurface.dipole().single_scatter_brdf(wo, frame.to_local(to_light));
             if (!(f.max_component() > 0)) continue;
-            if (upstream) f = f * subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light);
+            if (upstream) f = f * (ratios[i] = subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light));
             single += object.light_colour(i, x, n, to_light) * f * (kPi * cos_i);
         }
     }
@@ -308,12 +321,11 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
     const double thickness = subsurface.wants_thickness(*cloud, e) ? object.thickness(x, n)
                                                                 : std::numeric_limits<double>::infinity();
     if (thickness < subsurface.slab_threshold() && subsurface.slab_single_at_lookup())
-        single += slab_single_scatter(subsurface, object, x, n, to_eye, thickness);
+        single += slab_single_scatter(subsurface, object, x, n, to_eye, thickness, ratios);
     // The lights' directions at x (no shadow rays): the exit distribution for their incidence,
     // and on a slab each face's incidence factor (a scene's few lights on the stack; more on
     // the heap).
     Rgb exit_ratio(1.0);
-    constexpr int kOnStack = 16;
     Vec3 stack[kOnStack];
     std::vector<Vec3> heap;
     LightDirections lights;

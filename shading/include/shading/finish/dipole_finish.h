@@ -122,8 +122,12 @@ public:
 // as that face) scattered once toward the eye where the slab's T leaves it out
 // (SlabProfiles::t_single_apart). Terms below 1e-6 of a lit face's single scattering are
 // skipped with their shadow rays. Dipole::single_scatter_slab; shading/DIPOLE.md 5a.
+// `upstream` (directional lookups; null: 1): per light index, the ratio that lit the lookup's
+// half-space single scattering from upstream (Subsurface::single_scatter_upstream); the face's
+// correction takes it too, so that the two sum to the slab's own single scattering lit from
+// upstream (without it, the correction could exceed the dimmed half-space term: negative pixels).
 Rgb slab_single_scatter(const Subsurface& s, DipoleObject& object, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                        double d);
+                        double d, const Rgb* upstream = nullptr);
 
 // pixel += finish_subsurface_radiance(...): the light that entered `model`'s medium on the object
 // `key` (the object's identity) and leaves at x (unit normal n) toward to_eye. The object's

@@ -255,7 +255,8 @@ public:
     // channel): a back-lit face, a shadowed one, a dark side.
     bool transmits(const PointCloud& cloud, double thickness, const Rgb& irradiance_here) const;
     // ... and at x (normal n): a sample of the far face within half the thickness of x - n d
-    // is that bright (PointCloud::brighter_within).
+    // is that bright (PointCloud::brighter_within); with `directional on`, also where the
+    // surface about x is flat against the thickness (a sheet, not a ball: kDirectionalSlabCurvature).
     bool transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
                    const Rgb& irradiance_here) const;
 
@@ -330,7 +331,7 @@ private:
     // about a point of lookup level `level`: the base spacing's, whatever the level.
     static double curvature_window(const PointCloud& cloud, int level);
     // transmits(): the slab node of `thickness` where a far face's light is considered at all
-    // (between the thresholds, not with `directional on`); null elsewhere.
+    // (below transmit_threshold()); null elsewhere.
     const SlabProfiles* transmit_profiles(double thickness) const;
     std::unique_ptr<SlabCache> slabs_;  // thin geometry: null when off
     std::unique_ptr<const RandomWalk> walk_;  // method random_walk / auto: null otherwise
