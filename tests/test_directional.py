@@ -9,9 +9,10 @@ both follow exact transport. The scene is walk_bench's shadow edge: Skin1 (eta 1
 light at 45 degrees, the beam travelling away from the shadow, row averages across the edge.
 
 Tolerances stated before measuring: issue 31's bar, 3 % of the lit plateau plus 4 combined
-standard errors at every pixel; the plateau within 1 % + 4 se. `directional off` (the default)
-must miss the same bar (the check can fail): measured 19.7 / 23.8 / 21.8 % of the plateau, with
-it 1.9 / 2.6 / 2.4 %.
+standard errors at every pixel; the plateau within 1 % + 4 se. The edge is rendered at default
+settings (`directional on` is the default since 2026-12-07: the check fails if it is not);
+`directional off` must miss the same bar (the check can fail): measured 19.7 / 23.8 / 21.8 % of
+the plateau, with it 1.9 / 2.6 / 2.4 %.
 """
 
 from __future__ import annotations
@@ -47,8 +48,8 @@ def _edge(fork, extra: str):
 
 
 def test_slanted_shadow_edge_follows_exact_transport(fork):
-    xs, on, to_light = _edge(fork, " directional on")
-    _, off, _ = _edge(fork, "")  # the default: off
+    xs, on, to_light = _edge(fork, "")  # the default: on since 2026-12-07
+    _, off, _ = _edge(fork, " directional off")
     ss, sa = walk_bench.coefficients("Skin1", 0.0)
     ref = volume_ref.shadow_edge(ss, sa, 0.0, 1.3, to_light, xs, n_paths=100_000, seed=11)
     worst_off = 0.0

@@ -93,12 +93,12 @@ def _geometry_rows():
     method = lambda err, **kw: {"max_diff": err, "plateau": 0.01, "edge": [0.5] * 3, "seconds": 0.2,
                                 "profile": prof, **kw}
     edge = {"scene": "edge", "medium": "Skin1", "eta": 1.3, "g": 0.0, "angle": 45, "xs": xs, "ref_profile": prof,
-            "profile": method(0.2), "directional": method(0.03), "walk": method(0.05),
+            "profile": method(0.2), "radial": method(0.03), "walk": method(0.05),
             "auto": method(0.2, chose="profile")}
     img = (np.ones((3, 4, 4)) * 0.3).tolist()
     sm = lambda flux, **kw: {"flux": flux, "rms": 0.1, "seconds": 0.1, "image": img, **kw}
     sphere = {"scene": "sphere", "medium": "Skin1", "eta": 1.0, "g": 0.0, "lengths": 3.0, "ref_image": img,
-              "profile": sm(0.06), "directional": sm(0.09), "traced": sm(0.04), "walk": sm(0.01),
+              "profile": sm(0.06), "radial": sm(0.09), "traced": sm(0.04), "walk": sm(0.01),
               "auto": sm(0.01, chose="walk")}
     ch = {"r_mfp": [1.2, 2.0, 11.0], "rel": [0.1, 0.05, 0.5], "judged": [True, True, False],
           "worst_to_10": 0.1, "worst_to_30": None, "judged_to": 2.0, "ref_noise": [0.01, 0.02, 0.1]}

@@ -134,14 +134,15 @@ TRANSMIT_BAND_TOL = 0.03
 
 
 def test_exact_sheet_past_the_slab_threshold_passes_its_back_light():
-    # ... also with `directional on`, whose lookups took the half-space's there until
-    # 2026-12-07 (a slab lookup does not shift; on a ball that cost the dark side its shifted
-    # light): -88 % at 18 mm. A flat sheet now takes the slab's (Subsurface::transmits).
+    # ... with `directional on` (the default since 2026-12-07), whose lookups took the
+    # half-space's there until then (a slab lookup does not shift; on a ball that cost the dark
+    # side its shifted light): -88 % at 18 mm. A flat sheet now takes the slab's
+    # (Subsurface::transmits); and with `directional off`.
     for d in (18.0, 22.0):
         ref = volume_ref.sheet([SIGMA_S_PRIME], [SIGMA_A], 0.0, ETA, d, [0, 0, -1], np.array([0.0, 0.0, 1.0]),
                                n_paths=200_000, seed=3)
         want, err = float(ref.radiance[0]), float(ref.radiance_err[0])
-        for extra in ("", " directional on"):
+        for extra in ("", " directional off"):
             got = centre(sheet(d, -1000, EXACT + extra))
             print(f"exact sheet {d} mm lit from behind{extra}: pixel {got:.4e}, volume_ref pi L {want:.4e} "
                   f"+- {100 * err / want:.2f} % ({100 * (got / want - 1):+.2f} %)")

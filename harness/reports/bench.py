@@ -252,16 +252,16 @@ for _preset in ("Skin1", "Ketchup"):
     _edge = walk_bench.EDGE.format(width=10, height=4, light=walk_bench.vec([-math.sin(_t), 0.0, math.cos(_t)]),
                                    edge=walk_bench.plate_edge(_t), dipole=walk_bench.medium_text(_preset, 0.0, 1.3) + "{extra}")
     row(f"dipole directional on / off, slanted shadow edge: {_preset}",
-        Side("fork", _edge.replace("{extra}", "")), Side("fork", _edge.replace("{extra}", " directional on")),
+        Side("fork", _edge.replace("{extra}", " directional off")), Side("fork", _edge.replace("{extra}", " directional on")),
         width=320, height=128, threads=2, note="ior 1.3, light at 45 deg")
 
-# What `directional on` costs on the study's
-# blob and on the sphere of its size: its cloud's shifts (the fade at creases) and its lookups'
-# three images per point and channel. No goal: it is off by default.
+# What `directional on` (the default since 2026-12-07) costs on the study's blob and on the
+# sphere of its size: its cloud's shifts (the fade at creases) and its lookups' three images per
+# point and channel. No goal: the cost of being right at a slant.
 for _sphere in (False, True):
     for _preset in ("Marble", "Skin1", "Ketchup", "Skimmilk"):
         row(f"dipole directional on / off, {'sphere of the blob' if _sphere else 'blob'}: {_preset}",
-            Side("fork", shapes.scene("blob", _preset, sphere=_sphere)),
+            Side("fork", shapes.scene("blob", _preset, extra="directional off", sphere=_sphere)),
             Side("fork", shapes.scene("blob", _preset, extra="directional on", sphere=_sphere)),
             width=192, height=160, threads=2, note="method profile")
 

@@ -1,6 +1,7 @@
 """Subsurface in real geometry (issue 31): the dipole finish's profile method (at default settings,
-with ``directional on``, shading/DIPOLE.md 6b: on sheets it shifts nothing, but its single
-scattering from upstream must still get the slab's correction, and with
+which have ``directional on`` since 2026-12-07, shading/DIPOLE.md 6b: on sheets it shifts
+nothing, but its single scattering from upstream must still get the slab's correction; with
+``directional off``, the radially symmetric profile; and with
 single scattering traced in the object, ``single_scatter_samples`` :data:`TRACED`, not on the
 edge, a flat face where it is the formula), its random walk and ``method auto`` (which of the two
 it chose, at the walk's samples), rendered by the fork, against the independent volumetric
@@ -159,7 +160,7 @@ def edge_rows(args, fork) -> list[dict]:
                     plateau = ref.plateau
                     row = dict(scene="edge", medium=name, eta=eta, g=g, angle=angle, ref_seconds=ref_s,
                                ref_noise=float((ref.plateau_err / plateau).max()))
-                    for method, extra in (("profile", ""), ("directional", " directional on"),
+                    for method, extra in (("profile", ""), ("radial", " directional off"),
                                           ("walk", f" method random_walk samples {args.samples}"),
                                           ("auto", auto_extra(args.samples))):
                         text = EDGE.format(width=nx * step, height=ny * step, light=vec(to_light), edge=plate_edge(t),
@@ -243,7 +244,7 @@ def sheet_rows(args, fork) -> list[dict]:
                                    side="reflected" if side > 0 else "transmitted", view=angle,
                                    ref=want.tolist(), ref_seconds=ref_s / len(views),
                                    ref_noise=float(np.max(want_err / np.maximum(want, 1e-30))))
-                        for method, extra in (("profile", ""), ("directional", " directional on"),
+                        for method, extra in (("profile", ""), ("radial", " directional off"),
                                               ("traced", f" single_scatter_samples {TRACED}"),
                                               ("walk", f" method random_walk samples {args.samples}"),
                                               ("auto", auto_extra(args.samples))):
@@ -294,7 +295,7 @@ def sphere_rows(args, fork) -> list[dict]:
         yy, xx = np.meshgrid(-c, c, indexing="ij")
         half = span / n / 2
         inside = np.sqrt((np.abs(xx) + half) ** 2 + (np.abs(yy) + half) ** 2) < r
-        for method, extra in (("profile", ""), ("directional", " directional on"),
+        for method, extra in (("profile", ""), ("radial", " directional off"),
                               ("traced", f" single_scatter_samples {TRACED}"),
                               ("walk", f" method random_walk samples {max(1, args.samples // 16)}"),
                               ("auto", auto_extra(max(1, args.samples // 16)))):
@@ -429,9 +430,9 @@ def report(row: dict) -> None:
     head = f"{row['scene']:6s} {row['medium']:8s} eta {row['eta']:.1f} g {row['g']:.1f}"
     if row["scene"] == "edge":
         head += f" light {row['angle']:2d}"
-        p, d, w = row["profile"], row["directional"], row["walk"]
+        p, d, w = row["profile"], row["radial"], row["walk"]
         body = (f"| profile max {100 * p['max_diff']:6.2f} % plateau {100 * p['plateau']:5.2f} % edge {p['edge']} "
-                f"{p['seconds']:6.2f} s | directional on max {100 * d['max_diff']:6.2f} % plateau "
+                f"{p['seconds']:6.2f} s | directional off max {100 * d['max_diff']:6.2f} % plateau "
                 f"{100 * d['plateau']:5.2f} % edge {d['edge']} {d['seconds']:6.2f} s | walk max {100 * w['max_diff']:6.2f} % plateau {100 * w['plateau']:5.2f} % "
                 f"edge {w['edge']} {w['seconds']:6.2f} s (its noise {100 * w['noise']:.1f} %, per walk {w['per_walk']:.1f}, "
                 f"1 % noise per pixel in {w['to_1pc']:.2f} CPU s; at the profile's error "
@@ -443,8 +444,8 @@ def report(row: dict) -> None:
                 f"{row['auto']['seconds']:6.2f} s | ref edge {row['ref_edge']} noise {100 * row['ref_noise']:.2f} %")
     elif row["scene"] == "sheet":
         head += f" d {row['mfp']:5.2f} mfp {row['side']:11s} view {row['view']:2d}"
-        p, d, t, w = row["profile"], row["directional"], row["traced"], row["walk"]
-        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | directional on {100 * d['error']:7.2f} % "
+        p, d, t, w = row["profile"], row["radial"], row["traced"], row["walk"]
+        body = (f"| profile {100 * p['error']:7.2f} % {p['seconds']:6.2f} s | directional off {100 * d['error']:7.2f} % "
                 f"{d['seconds']:6.2f} s | traced single {100 * t['error']:7.2f} % "
                 f"{t['seconds']:6.2f} s | walk {100 * w['error']:6.2f} % "
                 f"{w['seconds']:6.2f} s (per walk {w['per_walk']:.2f}, 1 % noise per pixel in {w['to_1pc']:.3g} CPU s) | auto ({row['auto']['chose']}) {100 * row['auto']['error']:6.2f} % "
@@ -456,9 +457,9 @@ def report(row: dict) -> None:
         body = f"| {row['seconds']:6.2f} s | " + body
     else:
         head += f" R {row['lengths']:4.1f} ld"
-        p, d, t, w = row["profile"], row["directional"], row["traced"], row["walk"]
+        p, d, t, w = row["profile"], row["radial"], row["traced"], row["walk"]
         pct = lambda v: "   n/a" if v is None else f"{100 * v:6.2f}"
-        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | directional on "
+        body = (f"| profile flux {100 * p['flux']:6.2f} % rms {pct(p['rms'])} % {p['seconds']:6.2f} s | directional off "
                 f"flux {100 * d['flux']:6.2f} % rms {pct(d['rms'])} % {d['seconds']:6.2f} s | traced single flux "
                 f"{100 * t['flux']:6.2f} % rms {pct(t['rms'])} % {t['seconds']:6.2f} s | walk flux "
                 f"{100 * w['flux']:6.2f} % rms {pct(w['rms'])} % {w['seconds']:6.2f} s | auto ({row['auto']['chose']}) "
@@ -471,7 +472,7 @@ def report(row: dict) -> None:
 # ---------------------------------------------------------------- the report's section
 
 #: Methods as the report draws them: (row key, label, colour).
-METHODS = (("profile", "profile (default)", "tab:red"), ("directional", "directional on", "tab:orange"),
+METHODS = (("profile", "profile (default)", "tab:red"), ("radial", "directional off", "tab:orange"),
            ("traced", f"single_scatter_samples {TRACED}", "tab:purple"), ("walk", "random_walk", "tab:blue"),
            ("auto", "method auto", "tab:green"))
 

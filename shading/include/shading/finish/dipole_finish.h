@@ -30,7 +30,7 @@ struct DipoleParams {
     std::optional<int> refine_levels;
     std::optional<bool> single_scatter;                   // default: on with the exact profile
     std::optional<bool> thin_geometry;
-    std::optional<bool> directional;                      // the exact profile's entry shifts (default off)
+    std::optional<bool> directional;                      // the exact profile's entry shifts (default on)
     std::optional<bool> curvature;                        // the curvature correction (default: on with the exact profile)
     bool exact_profile = true;                            // `profile exact` (default) or `profile dipole`
     // `method profile` (the default), `method random_walk` or `method auto` (per object:

@@ -92,7 +92,8 @@ struct SubsurfaceSettings {
     // at a slant leaves about an entry shifted along its refracted beam, and single scattering
     // is lit from upstream (shading/DIPOLE.md 6b): the constructor then moves single_scatter to
     // auto_single_scatter (at each lookup, not in the BRDF), as the finish does for `auto`.
-    // Off by default: lookups of slanted-lit objects cost up to ~5x (shading/DIPOLE.md 6b).
+    // Off in the library (its unit checks are of the radially symmetric profile); the dipole
+    // finish turns it on unless the scene says `directional off` (dipole_finish.cpp).
     bool directional = false;
     // The exact profile's exit distribution for light entering at a slant (RadialProfile::
     // exit_factor_oblique; shading/DIPOLE.md 6e): the half-space lookup's exit factor taken for
