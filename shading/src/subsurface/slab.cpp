@@ -191,6 +191,18 @@ double slab_threshold(const Dipole& dipole, double tolerance) {
     });
 }
 
+double reflect_threshold(const Dipole& dipole, double tolerance) {
+    return thickness_from(dipole, [&](double d) {
+        for (int c = 0; c < 3; ++c) {
+            const DipoleChannel& ch = dipole.channel(c);
+            if (ch.empty) continue;
+            const double inf = ch.rd_total();
+            if (inf > 0 && std::fabs(SlabChannel::make(ch, d).R_total() - inf) > tolerance * inf) return false;
+        }
+        return true;
+    });
+}
+
 double transmit_threshold(const Dipole& dipole, double fraction) {
     return thickness_from(dipole, [&](double d) {
         for (int c = 0; c < 3; ++c) {

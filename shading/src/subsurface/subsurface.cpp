@@ -72,6 +72,7 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
         return;  // no cloud, no slabs: the walk is exact in any geometry
     if (settings_.thin) {
         slab_threshold_ = shading::slab_threshold(dipole_, kSlabTolerance);
+        reflect_threshold_ = std::min(slab_threshold_, shading::reflect_threshold(dipole_, kSlabTolerance));
         transmit_threshold_ = std::max(slab_threshold_, shading::transmit_threshold(dipole_, kTransmitFraction));
         const double d_min = kSlabMinMfp * mean_free_path();
         if (slab_threshold_ > d_min && d_min > 0) {
@@ -86,7 +87,7 @@ Subsurface::Subsurface(const Medium& medium, const SubsurfaceSettings& settings,
             slabs_ = std::make_unique<SlabCache>(d_min, transmit_threshold_,
                                                  [this, apart](double d) { return model_->slab_profiles(dipole_, d, apart); });
         } else {
-            slab_threshold_ = transmit_threshold_ = 0;  // (a medium without scattering: nothing to do)
+            slab_threshold_ = reflect_threshold_ = transmit_threshold_ = 0;  // (a medium without scattering: nothing to do)
         }
     }
 }
@@ -511,7 +512,13 @@ Rgb Subsurface::curved_by(const Rgb& m, double H) const {
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                          const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio,
                          const LightDirections& lights) const {
-    if (!(thickness < slab_threshold_) && !transmits(cloud, x, n, thickness, irradiance_here))
+    // From reflect_threshold() on, a face reflects as the half-space's: it takes the half-space's
+    // lookup (with `directional`, its shifts) unless the far face's light could show
+    // (transmits()). A block of a near-conservative medium, a slab up to several diffusion
+    // lengths (Skimmilk's red: 81 mm at the 0.5 % tolerance on R and T, 39 mm on R alone), is
+    // then lit as the half-space where nothing lights its far face: a shadow edge on 60 mm of it
+    // under light at 45 degrees was 9-12 % of the plateau off with the slab's unshifted lookups.
+    if (!(thickness < reflect_threshold_) && !transmits(cloud, x, n, thickness, irradiance_here))
         return radiance(cloud, x, n, to_eye, irradiance_here, exit_ratio);
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);

@@ -96,6 +96,10 @@ SlabProfiles make_slab_profiles(const Dipole& dipole, double d, const Rgb& scale
 // (both shrink with d: bisection in log d): the finish renders objects at least this thick as
 // semi-infinite, exactly as without thin geometry. Scene units.
 double slab_threshold(const Dipole& dipole, double tolerance = 0.005);
+// The thickness above which a slab's total reflectance alone is within `tolerance` of the
+// semi-infinite medium's in every channel, |R_total(d) - R_inf| / R_inf (at most
+// slab_threshold's): where its far face is dark, such a slab's face is the half-space's.
+double reflect_threshold(const Dipole& dipole, double tolerance = 0.005);
 // The thickness above which a slab transmits less than `fraction` of the half-space's total
 // reflectance in every channel, T_total(d) / R_inf (at least slab_threshold's for fractions
 // below its tolerance). Scene units.

@@ -237,10 +237,11 @@ public:
     Rgb radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                  const Rgb& irradiance_here, const Rgb& exit_ratio = Rgb(1.0)) const;
     // The same at a point of local thickness `thickness` (SurfaceSampler::thickness): below
-    // slab_threshold() the slab's profiles (far_exitance_sided, the near field from R; between
-    // the two thickness nodes around it, the same face's part linear in ln d, the opposite
-    // face's geometric in d); up to transmit_threshold() the same where transmits(); else
-    // exactly the call above.
+    // reflect_threshold() the slab's profiles (far_exitance_sided, the near field from R;
+    // between the two thickness nodes around it, the same face's part linear in ln d, the
+    // opposite face's geometric in d); up to transmit_threshold() the same where transmits()
+    // (above reflect_threshold() a face reflects as the half-space's: a block whose far face is
+    // dark takes its lookup, with `directional` its shifts); else exactly the call above.
     // (exit_ratio: the half-space's; on a slab, onto its lit face's own light, faded in with
     // the thickness from 4 to 8 transport mfp (half_space_share); the light through the far
     // face keeps the slab's exits.)
@@ -250,7 +251,7 @@ public:
                  const Rgb& irradiance_here, double thickness, const Rgb& exit_ratio = Rgb(1.0),
                  const LightDirections& lights = LightDirections()) const;
 
-    // At a point between slab_threshold() and transmit_threshold() thick: whether the light
+    // At a point between reflect_threshold() and transmit_threshold() thick: whether the light
     // through its far face could exceed kSlabTolerance of its own face's (T_total at its
     // thickness times the cloud's brightest sample against R_total times its own E_t, in any
     // channel): a back-lit face, a shadowed one, a dark side.
@@ -317,6 +318,7 @@ private:
     std::shared_ptr<const RdProfile> profile_;
     double reach_ = 0;  // radius holding 99 % of Rd: how far from the view refinement matters
     double slab_threshold_ = 0;
+    double reflect_threshold_ = 0;  // <= slab_threshold_: a slab's R within kSlabTolerance of R_inf
     double transmit_threshold_ = 0;  // >= slab_threshold_
     bool slab_single_ = false;
     bool directional_ = false;  // the profile has entry shifts and settings.directional is on
