@@ -172,8 +172,9 @@ std::shared_ptr<FinishModel> make_dipole_finish(const DipoleParams& p, const Fin
     if (p.error_bound) settings.max_angle = *p.error_bound;
     if (p.refine_levels) settings.max_levels = *p.refine_levels;
     if (p.thin_geometry) settings.thin = *p.thin_geometry;
-    // on by default (DIPOLE.md 6b): a slanted shadow edge was 20-50 % of the plateau off with the
-    // radially symmetric profile, 2-10 % with the shifts; the library's own default stays off
+    // on by default (DIPOLE.md 6b): a shadow edge under light at 45-70 degrees is 10-53 % of the
+    // plateau off with the radially symmetric profile, 2-6 % with the shifts (walk_bench, ior
+    // 1.3); the library's own default stays off
     settings.directional = p.directional.value_or(true);
     if (p.samples) settings.walk.samples = *p.samples;
     if (p.single_scatter_samples) settings.single_scatter_points = *p.single_scatter_samples;
