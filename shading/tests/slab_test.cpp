@@ -170,6 +170,25 @@ TEST(SlabProfile, ThresholdIsWhereTheSlabBecomesTheHalfSpace) {
     }
 }
 
+// R alone: reflect_threshold, where R is within 0.5 % of R_inf (not 10 % below it), well
+// before the slab threshold at high albedo (T lingers), and never after it.
+TEST(SlabProfile, ReflectThresholdIsWhereRAloneBecomesTheHalfSpaces) {
+    for (double ap : {0.5, 0.99, 0.998}) {
+        const Dipole dip(unit_medium(ap, 1.3));
+        const double t = reflect_threshold(dip);
+        auto err = [&](double d) {
+            const double inf = dip.channel(0).rd_total();
+            return std::fabs(SlabChannel::make(dip.channel(0), d).R_total() - inf) / inf;
+        };
+        EXPECT_LE(err(t), 0.005);
+        EXPECT_GT(err(t / 1.1), 0.005);
+        EXPECT_LE(t, slab_threshold(dip));
+        if (ap > 0.99) EXPECT_LT(t, 0.7 * slab_threshold(dip));
+        std::printf("alpha' %.3f eta 1.3: reflect threshold %.2f, slab threshold %.2f transport mfp\n", ap, t,
+                    slab_threshold(dip));
+    }
+}
+
 // ---------------------------------------------------------------- a sheet in a Subsurface
 
 namespace {

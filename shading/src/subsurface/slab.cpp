@@ -175,44 +175,37 @@ double thickness_from(const Dipole& dipole, Close close) {
     return hi;
 }
 
-}  // namespace
-
-double slab_threshold(const Dipole& dipole, double tolerance) {
+// The least thickness from which `far(s, R_inf)` is false for the slab s of every channel that
+// reflects (R_inf > 0): from there on the slab is close to the half-space in what `far` measures.
+template <class Far>
+double thickness_where_none(const Dipole& dipole, Far far) {
     return thickness_from(dipole, [&](double d) {
         for (int c = 0; c < 3; ++c) {
             const DipoleChannel& ch = dipole.channel(c);
             if (ch.empty) continue;
-            const SlabChannel s = SlabChannel::make(ch, d);
             const double inf = ch.rd_total();
-            if (!(inf > 0)) continue;
-            if (std::fabs(s.R_total() - inf) + s.T_total() > tolerance * inf) return false;
+            if (inf > 0 && far(SlabChannel::make(ch, d), inf)) return false;
         }
         return true;
+    });
+}
+
+}  // namespace
+
+double slab_threshold(const Dipole& dipole, double tolerance) {
+    return thickness_where_none(dipole, [&](const SlabChannel& s, double inf) {
+        return std::fabs(s.R_total() - inf) + s.T_total() > tolerance * inf;
     });
 }
 
 double reflect_threshold(const Dipole& dipole, double tolerance) {
-    return thickness_from(dipole, [&](double d) {
-        for (int c = 0; c < 3; ++c) {
-            const DipoleChannel& ch = dipole.channel(c);
-            if (ch.empty) continue;
-            const double inf = ch.rd_total();
-            if (inf > 0 && std::fabs(SlabChannel::make(ch, d).R_total() - inf) > tolerance * inf) return false;
-        }
-        return true;
+    return thickness_where_none(dipole, [&](const SlabChannel& s, double inf) {
+        return std::fabs(s.R_total() - inf) > tolerance * inf;
     });
 }
 
 double transmit_threshold(const Dipole& dipole, double fraction) {
-    return thickness_from(dipole, [&](double d) {
-        for (int c = 0; c < 3; ++c) {
-            const DipoleChannel& ch = dipole.channel(c);
-            if (ch.empty) continue;
-            const double inf = ch.rd_total();
-            if (inf > 0 && SlabChannel::make(ch, d).T_total() > fraction * inf) return false;
-        }
-        return true;
-    });
+    return thickness_where_none(dipole, [&](const SlabChannel& s, double inf) { return s.T_total() > fraction * inf; });
 }
 
 }  // namespace shading
