@@ -183,7 +183,9 @@ TEST(SlabProfile, ReflectThresholdIsWhereRAloneBecomesTheHalfSpaces) {
         EXPECT_LE(err(t), 0.005);
         EXPECT_GT(err(t / 1.1), 0.005);
         EXPECT_LE(t, slab_threshold(dip));
-        if (ap > 0.99) EXPECT_LT(t, 0.7 * slab_threshold(dip));
+        if (ap > 0.99) {
+            EXPECT_LT(t, 0.7 * slab_threshold(dip));
+        }
         std::printf("alpha' %.3f eta 1.3: reflect threshold %.2f, slab threshold %.2f transport mfp\n", ap, t,
                     slab_threshold(dip));
     }

@@ -379,6 +379,11 @@ Rgb Subsurface::incidence_exit_ratio(const Vec3& n, const Vec3& to_eye, const Ve
 
 Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
                          const Rgb& irradiance_here, const Rgb& exit_ratio) const {
+    return half_space(cloud, x, n, to_eye, irradiance_here, exit_ratio, kNoCurvature);
+}
+
+Rgb Subsurface::half_space(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                           const Rgb& irradiance_here, const Rgb& exit_ratio, double H) const {
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
     std::size_t visited = 0;
@@ -409,7 +414,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
         const int own = cloud.lookup_level(x);
         const Rgb div = cloud.shift_divergence_about(x, n, curvature_window(cloud, own));
         for (int k = 0; k < 3; ++k) m[k] *= 1.0 + std::clamp(div[k], -kMaxShiftDivergence, kMaxShiftDivergence);
-        return curved(m, cloud, x, n, curving_ ? own : 0) * model_->exit_factor(cos_o) * exit_ratio;
+        return curved(m, cloud, x, n, curving_ ? own : 0, H) * model_->exit_factor(cos_o) * exit_ratio;
     }
     const int level = cloud.lookup_level(x);
     const double h = cloud.level_spacing(level), r0 = near_radius(h);
@@ -417,7 +422,7 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     Rgb m = cloud.far_exitance(*profile_, x, r0, h, settings_.max_angle, cutoff(), &visited, wt);
     count_lookup(visited, false);
     m += irradiance_here * cloud.level_near(level) * (wt ? near_weight(*wt, h) : Rgb(1.0));
-    return curved(m, cloud, x, n, level) * model_->exit_factor(cos_o) * exit_ratio;
+    return curved(m, cloud, x, n, level, H) * model_->exit_factor(cos_o) * exit_ratio;
 }
 
 Subsurface::SlabLights::SlabLights(const RadialProfile& model, const Vec3& n, const LightDirections& lights) {
@@ -491,8 +496,10 @@ double Subsurface::curvature_window(const PointCloud& cloud, int level) {
     return std::max(cloud.view_spacing(), cloud.level_spacing(level));
 }
 
-Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const {
+Rgb Subsurface::curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level,
+                       double H) const {
     if (!curving_) return m;  // (off, or c 0 in every channel: no need for H)
+    if (H != kNoCurvature) return curved_by(m, H);  // (taken already, over the same window)
     // over the base spacing's window whatever the lookup's level: a refined level's smaller
     // window would give a curvature that steps where the level does. The base is the view's
     // (h0), or the lookup's level where the sampler coarsened it (out of the image's reach):
@@ -518,8 +525,9 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     // lengths (Skimmilk's red: 81 mm at the 0.5 % tolerance on R and T, 39 mm on R alone), is
     // then lit as the half-space where nothing lights its far face: a shadow edge on 60 mm of it
     // under light at 45 degrees was 9-12 % of the plateau off with the slab's unshifted lookups.
-    if (!(thickness < reflect_threshold_) && !transmits(cloud, x, n, thickness, irradiance_here))
-        return radiance(cloud, x, n, to_eye, irradiance_here, exit_ratio);
+    double known = kNoCurvature;  // (transmits() may take H, over the curvature's window)
+    if (!(thickness < reflect_threshold_) && !transmits(cloud, x, n, thickness, irradiance_here, &known))
+        return half_space(cloud, x, n, to_eye, irradiance_here, exit_ratio, known);
     const double cos_o = dot(n, to_eye);
     if (!(cos_o > 0)) return Rgb(0.0);
     // Between the two thickness nodes around it (SlabCache::around): the same face's part
@@ -534,7 +542,9 @@ Rgb Subsurface::radiance(const PointCloud& cloud, const Vec3& x, const Vec3& n, 
     // the walk: 0.4-0.9 % more off with the factors taken whole). Faded out as |H| d goes to 1.
     const bool incident = lights.count > 0 && (slab.a->p.incidence || (slab.b && slab.b->p.incidence));
     const bool need_h = curving_ || incident;
-    const double H = need_h ? cloud.mean_curvature_about(x, n, curvature_window(cloud, level)) : 0.0;
+    const double H = !need_h                ? 0.0
+                     : known != kNoCurvature ? known
+                                             : cloud.mean_curvature_about(x, n, curvature_window(cloud, level));
     const double flat = std::clamp(1.0 - std::fabs(H) * thickness, 0.0, 1.0);
     check_resolved(cloud, x, cloud.level_spacing(level), irradiance_here, settings_.tolerance);
     std::size_t visited = 0;
@@ -599,7 +609,7 @@ bool Subsurface::transmits(const PointCloud& cloud, double thickness, const Rgb&
 }
 
 bool Subsurface::transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
-                           const Rgb& irradiance_here) const {
+                           const Rgb& irradiance_here, double* curvature) const {
     // ... and does, where a sample of the far face (facing away from x's, within half the
     // thickness of the point across from x: T's reach) is bright enough. On a sphere lit from
     // one side, a lit point's far face is its dark side: no slab lookup there.
@@ -616,8 +626,9 @@ bool Subsurface::transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n
     // against exact transport). A flat back-lit sheet there has no shifts to lose; with the
     // half-space's lookup its light through was lost (-88 % at 18 mm of sigma_s' 1, sigma_a 0.05).
     if (!directional_) return true;
-    const double window = curvature_window(cloud, cloud.lookup_level(x));
-    return std::fabs(cloud.mean_curvature_about(x, n, window)) * thickness < kDirectionalSlabCurvature;
+    const double H = cloud.mean_curvature_about(x, n, curvature_window(cloud, cloud.lookup_level(x)));
+    if (curvature) *curvature = H;
+    return std::fabs(H) * thickness < kDirectionalSlabCurvature;
 }
 
 Rgb Subsurface::slab_radiance(const SlabCache::Node& node, const SlabCache::Node* node_b, const PointCloud& cloud,

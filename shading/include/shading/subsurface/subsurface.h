@@ -38,6 +38,8 @@
 // includes them all: the finish adapter and the patches see the whole finish through it.
 #pragma once
 
+#include <limits>
+
 #include <memory>
 #include <vector>
 #include <mutex>
@@ -259,8 +261,10 @@ public:
     // ... and at x (normal n): a sample of the far face within half the thickness of x - n d
     // is that bright (PointCloud::brighter_within); with `directional on`, also where the
     // surface about x is flat against the thickness (a sheet, not a ball: kDirectionalSlabCurvature).
+    // `curvature`: where it took the mean curvature about x (over curved()'s window), it is
+    // stored there for the lookup that follows.
     bool transmits(const PointCloud& cloud, const Vec3& x, const Vec3& n, double thickness,
-                   const Rgb& irradiance_here) const;
+                   const Rgb& irradiance_here, double* curvature = nullptr) const;
 
 private:
     // The mean of the exit weight w over the near field of spacing h (its share of Rd, (1 -
@@ -327,9 +331,16 @@ private:
     bool curving_ = false;      // some channel's curvature_length_ is not 0
     // The exitance m at x times 1 + curvature_length_ H (H from the cloud about x, in the window
     // of its base spacing, or of x's lookup level `level` where that is coarser).
-    Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level) const;
+    // (H: the mean curvature about x where the caller has taken it over the same window;
+    // kNoCurvature: take it here.)
+    static constexpr double kNoCurvature = -std::numeric_limits<double>::infinity();
+    Rgb curved(const Rgb& m, const PointCloud& cloud, const Vec3& x, const Vec3& n, int level,
+               double H = kNoCurvature) const;
     // ... for the mean curvature H about x, already taken.
     Rgb curved_by(const Rgb& m, double H) const;
+    // The half-space's lookup (the public radiance() without a thickness), the curvature about x given where known.
+    Rgb half_space(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
+                   const Rgb& irradiance_here, const Rgb& exit_ratio, double H) const;
     // The window (spacing) over which the curvature and the shift field's divergence are read
     // about a point of lookup level `level`: the base spacing's, whatever the level.
     static double curvature_window(const PointCloud& cloud, int level);
