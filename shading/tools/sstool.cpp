@@ -28,9 +28,11 @@ using shading_tools::UsageError;
 const char* kUsage =
     "usage: sstool COMMAND [options]\n"
     "  build -o FILE [--if-stale] [--g LIST] [--eta LIST] [--thickness LIST] [--photons N]\n"
-    "        [--short-photons N] [--albedos N] [--seed S] [--threads T] [--quiet | --verbose]\n"
+    "        [--short-photons N] [--albedos N] [--angle-nodes N] [--seed S] [--threads T]\n"
+    "        [--quiet | --verbose]\n"
     "        build the exact-profile tables (defaults: the grid `make brdf-data` ships, see\n"
-    "        shading/DIPOLE.md); --if-stale: keep FILE when it was built by this generator\n"
+    "        shading/DIPOLE.md; --angle-nodes: inside-radiance samples per exit distribution,\n"
+    "        2-32, default 8); --if-stale: keep FILE when it was built by this generator\n"
     "        version with these settings. One line per Monte Carlo run (run k/N, time);\n"
     "        --verbose adds each run's fit diagnostics, explained once; --quiet: none\n"
     "  info FILE                         print the axes and the generator settings\n"
@@ -105,6 +107,7 @@ ProfileBuildSettings build_settings(const Args& a) {
     s.photons = count(a, "--photons", s.photons);
     s.short_photons = count(a, "--short-photons", s.short_photons);
     s.albedos = int(count(a, "--albedos", std::uint64_t(s.albedos)));
+    s.angle_nodes = int(count(a, "--angle-nodes", std::uint64_t(s.angle_nodes)));
     s.seed = count(a, "--seed", s.seed);
     s.threads = int(count(a, "--threads", 0));
     return s;
@@ -297,7 +300,7 @@ int main(int argc, char** argv) {
     }
     const std::map<std::string, bool> known = {
         {"-o", true},        {"--if-stale", false},     {"--g", true},          {"--eta", true},     {"--thickness", true},
-        {"--photons", true}, {"--short-photons", true}, {"--albedos", true},    {"--seed", true},    {"--threads", true},
+        {"--photons", true}, {"--short-photons", true}, {"--albedos", true},    {"--angle-nodes", true},    {"--seed", true},    {"--threads", true},
         {"--quiet", false},  {"--verbose", false},     {"--alpha-prime", true},   {"--face", true},       {"--edges", true},   {"--cos", true},
         {"--radii", true},   {"--cos-incidence", true}, {"--albedo", true},     {"--help", false},   {"-h", false},
         {"--total", true}};
