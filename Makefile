@@ -184,13 +184,22 @@ SS_SLAB_D := 0.0625,0.0787451,0.0992126,0.125,0.15749,0.198425,0.25,0.31498,0.39
 SS_SLAB_D := $(SS_SLAB_D),1.25992,1.5874,2,2.51984,3.1748,4,5.03968,6.3496,8,10.0794,12.6992,16,20.1587,25.3984
 SS_SLAB_D := $(SS_SLAB_D),32,40.3175,50.7968,64
 SS_SLAB_ARGS := --g 0 --eta 1,1.1,1.2,1.3,1.33,1.4,1.5,1.6,1.8,2 --photons 40000 --short-photons 400000 --thickness $(SS_SLAB_D)
+# The slab tables of forward-scattering media (DIPOLE.md 6a): g 0 to 0.95, the iors most scenes
+# use, thicknesses 2^(k/2) mean free paths (not transport ones: 1/16 .. 64 mfp is 1/160 .. 6.4
+# mfp' at g 0.9; thicker channels take a smaller g), 24 exit-angle samples for the narrow
+# forward lobe seen through a sheet, half the isotropic file's photons; about 7 minutes on 2 cores.
+SS_FORWARD := $(BRDF_DATA)/subsurface_slabs_forward.ssp
+SS_FORWARD_D := 0.0625,0.0883883,0.125,0.176777,0.25,0.353553,0.5,0.707107,1,1.41421,2,2.82843,4,5.65685,8
+SS_FORWARD_D := $(SS_FORWARD_D),11.3137,16,22.6274,32,45.2548,64
+SS_FORWARD_ARGS := --g 0,0.5,0.7,0.8,0.9,0.95 --eta 1,1.2,1.33,1.5 --photons 20000 --short-photons 200000 --angle-nodes 24 --thickness $(SS_FORWARD_D)
 # Both go through a cache this machine's clones share (mk/ss-tables.sh: keyed by the sha256 of
 # sstool's code and data and of the options, checked whole before use); SS_CACHE= turns it off.
 SS_CACHE ?= $(or $(XDG_CACHE_HOME),$(HOME)/.cache)/povray-brdf/ss-tables
-brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt and the exact subsurface profiles (half-space and slabs) into build/brdf_data
+brdf-data: $(LIBSHADING) ## Generate the ready tables of brdf_data/materials.txt and the exact subsurface profiles (half-space, slabs, forward-scattering slabs) into build/brdf_data
 	bash mk/brdf-data.sh $(BRDFTOOL) brdf_data/materials.txt $(BRDF_DATA)
 	bash mk/ss-tables.sh $(SSTOOL) '$(SS_CACHE)' $(SS_PROFILES) --threads $(JOBS)
 	bash mk/ss-tables.sh $(SSTOOL) '$(SS_CACHE)' $(SS_SLABS) --threads $(JOBS) $(SS_SLAB_ARGS)
+	bash mk/ss-tables.sh $(SSTOOL) '$(SS_CACHE)' $(SS_FORWARD) --threads $(JOBS) $(SS_FORWARD_ARGS)
 
 # ---------------------------------------------------------------- python harness
 # The harness is a package (pyproject.toml: pinned dependencies, console scripts); the venv

@@ -10,7 +10,8 @@
 #   PREFIX/share/povray-brdf/include      POV-Ray 3.7.0.10's standard include files and ours
 #   PREFIX/share/povray-brdf/brdf_data    the ready tables of `make brdf-data` (.brdf, and the exact
 #                                         subsurface profiles subsurface_profiles.ssp and the slab
-#                                         tables of thin geometry subsurface_slabs.ssp)
+#                                         tables of thin geometry subsurface_slabs.ssp and of
+#                                         forward-scattering media subsurface_slabs_forward.ssp)
 #   PREFIX/share/povray-brdf/doc          README, docs/, shading/MODELS.md, DIPOLE.md, brdf_data/README.md
 #   PREFIX/share/man/man1                 povray-brdf.1.gz, brdftool.1.gz, sstool.1.gz (from docs/man/)
 #   PREFIX/share/povray-brdf/install-manifest.txt   every installed file (`make uninstall`)

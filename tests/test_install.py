@@ -66,7 +66,8 @@ def test_layout(prefix):
               "share/povray-brdf/doc/shading/MODELS.md", "share/povray-brdf/doc/docs/fitting.md",
               "share/man/man1/povray-brdf.1.gz", "share/man/man1/brdftool.1.gz", "share/man/man1/sstool.1.gz",
               "bin/sstool", "share/povray-brdf/brdf_data/subsurface_profiles.ssp",
-              "share/povray-brdf/brdf_data/subsurface_slabs.ssp"):
+              "share/povray-brdf/brdf_data/subsurface_slabs.ssp",
+              "share/povray-brdf/brdf_data/subsurface_slabs_forward.ssp"):
         assert (prefix / f).is_file(), f
     for page in ("povray-brdf", "brdftool", "sstool"):  # `man` finds them under PREFIX/share/man
         shown = subprocess.run(["man", "-M", str(prefix / "share" / "man"), page], capture_output=True, text=True,

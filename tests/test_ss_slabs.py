@@ -179,9 +179,10 @@ def test_exact_thick_object_renders_as_before():
 
 
 def test_medium_outside_the_slab_tables_says_so_once():
-    # g 0.5: the slab tables hold g 0 only; the thin sheet falls back to the scaled multipole and
-    # the statistics say why, once (two such objects).
-    body = "sigma_s 2 anisotropy 0.5 sigma_a 0.05 ior 1.3 mm_per_unit 1 profile exact"
+    # g 0.5 at ior 1.8: the isotropic slab file holds g 0 only, the forward-scattering one iors
+    # to 1.5; the thin sheet falls back to the scaled multipole and the statistics say why for
+    # each file, once (two such objects).
+    body = "sigma_s 2 anisotropy 0.5 sigma_a 0.05 ior 1.8 mm_per_unit 1 profile exact"
     scene = SHEET.format(light=-1000, bottom=-1.0, dipole=body) + \
         "box { <30, -25, -1>, <80, 25, 0> texture { pigment { rgb 1 } finish { ambient 0 dipole { " + body + " } } } }\n"
     r = runner.render(scene, "fork", width=16, height=16, float_exr=True, threads=2)
@@ -189,7 +190,8 @@ def test_medium_outside_the_slab_tables_says_so_once():
     lines = r.stderr.splitlines()
     at = [i for i, line in enumerate(lines) if "thin objects with profile exact use the multipole" in line]
     print("\n".join(lines[at[0]:at[0] + 3]) if at else r.stderr[-1500:])
-    assert len(at) == 1 and "g = 0.5 is outside the tables' range [0, 0]" in lines[at[0] + 2]
+    assert len(at) == 1 and "subsurface_slabs.ssp: g = 0.5 is outside the tables' range [0, 0]" in lines[at[0] + 2]
+    assert "subsurface_slabs_forward.ssp: ior = 1.8 is outside the tables' range [1, 1.5]" in lines[at[0] + 3]
     # ... and, the medium scattering forward (g >= 0.5), what that costs and what gets it right
-    advice = " ".join(line.strip() for line in lines[at[0] + 3:at[0] + 8])
+    advice = " ".join(line.strip() for line in lines[at[0] + 4:at[0] + 10])
     assert "forward-scattering" in advice and "`method random_walk`" in advice, advice

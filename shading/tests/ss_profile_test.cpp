@@ -511,6 +511,22 @@ std::shared_ptr<const ProfileTables> small_slab_tables() {
     return t;
 }
 
+// Forward-scattering slabs as make brdf-data's second slab file is laid out: g from 0 up.
+std::shared_ptr<const ProfileTables> small_forward_slab_tables() {
+    static std::shared_ptr<const ProfileTables> t = [] {
+        ProfileBuildSettings s;
+        s.g = {0.0, 0.5};
+        s.eta = {1.0, 1.3};
+        s.thickness = {0.5, 1.0, 2.0};
+        s.photons = 2000;
+        s.short_photons = 5000;
+        s.angle_nodes = 16;
+        s.threads = 2;
+        return std::shared_ptr<const ProfileTables>(build_profile_tables(s));
+    }();
+    return t;
+}
+
 std::shared_ptr<const ProfileTables> small_tables_ptr() {
     return std::shared_ptr<const ProfileTables>(std::shared_ptr<const ProfileTables>(), &small_tables());
 }
@@ -555,16 +571,82 @@ TEST(ExactSlabs, CoverageAndItsReason) {
     EXPECT_EQ(covered.slab_gap(), "");
     ExactProfile none(m, small_tables_ptr());
     EXPECT_EQ(none.slab_tables(), nullptr);
-    EXPECT_EQ(none.slab_gap(), "no slab tables");
+    EXPECT_EQ(none.slab_gap(), "subsurface_slabs.ssp: no slab tables\n  subsurface_slabs_forward.ssp: no slab tables");
     Medium aniso = m;
     aniso.sigma_s = Rgb(2.0, 4.0, 8.0);
     aniso.g = Rgb(0.5);
     ExactProfile outside(aniso, small_tables_ptr(), small_slab_tables());
     EXPECT_EQ(outside.slab_tables(), nullptr);
-    EXPECT_NE(outside.slab_gap().find("g = 0.5 is outside the tables' range [0, 0]"), std::string::npos) << outside.slab_gap();
+    EXPECT_NE(outside.slab_gap().find("subsurface_slabs.ssp: g = 0.5 is outside the tables' range [0, 0]"), std::string::npos)
+        << outside.slab_gap();
     ExactProfile half_only(m, small_tables_ptr(), small_tables_ptr());  // semi-infinite tables as slabs
     EXPECT_EQ(half_only.slab_tables(), nullptr);
-    EXPECT_EQ(half_only.slab_gap(), "the slab tables have no transmission face");
+    EXPECT_NE(half_only.slab_gap().find("subsurface_slabs.ssp: the slab tables have no transmission face"), std::string::npos);
+    // The forward-scattering file covers what the isotropic one does not; the isotropic one is
+    // taken wherever it covers (more iors and photons).
+    const auto forward = small_forward_slab_tables();
+    ExactProfile fwd(aniso, small_tables_ptr(), small_slab_tables(), forward);
+    EXPECT_EQ(fwd.slab_tables(), forward.get());
+    EXPECT_EQ(fwd.slab_gap(), "");
+    ExactProfile iso(m, small_tables_ptr(), small_slab_tables(), forward);
+    EXPECT_EQ(iso.slab_tables(), small_slab_tables().get());
+    Medium dense = aniso;  // ior 1.45: g 0.5 outside the isotropic file, the ior outside the forward one
+    dense.eta = 1.45;
+    ExactProfile neither(dense, small_tables_ptr(), small_slab_tables(), forward);
+    EXPECT_EQ(neither.slab_tables(), nullptr);
+    EXPECT_NE(neither.slab_gap().find("subsurface_slabs_forward.ssp: ior = 1.45 is outside the tables' range [1, 1.3]"),
+              std::string::npos)
+        << neither.slab_gap();
+    EXPECT_NE(neither.slab_note().find("g = 0.5 is outside"), std::string::npos) << neither.slab_note();
+}
+
+// The forward file's thickness axis is in mean free paths, d' / (1 - alpha g) at each g node: a
+// channel thicker than its own g's slabs reach takes the largest g node below it that holds it
+// (similarity), never the multipole beside the tables (its step into the slab cache's
+// interpolation read -12 to -18 % seen through Marble at g 0.9, 3-4 mfp').
+TEST(ExactSlabs, AForwardChannelThickerThanItsGHoldsTakesASmallerG) {
+    // alpha' 0.9, g 0.5: the node's albedo 0.947, so 1 mfp' is 1.9 mfp there; the tables end at
+    // 2 mfp: d' = 1.5 lies beyond g 0.5's slabs, inside g 0's.
+    const double g = 0.5, sp = 1.0, sa = 1.0 / 9.0;
+    Medium m = Medium::from_reduced(Rgb(sp), Rgb(sa), 1.0, 1.0);
+    m.sigma_s = Rgb(sp / (1.0 - g));
+    m.g = Rgb(g);
+    const auto forward = small_forward_slab_tables();
+    const ExactProfile model(m, small_tables_ptr(), small_slab_tables(), forward);
+    ASSERT_EQ(model.slab_tables(), forward.get());
+    const Dipole dipole(m);
+    const double st = model.sigma_t_prime(0), alpha_prime = model.channel(0)->alpha_prime();
+    EXPECT_THROW(ChannelProfile(*forward, alpha_prime, g, 1.0, 1.5, 0), std::invalid_argument);
+    int tabulated = -1;
+    const SlabProfiles thick = make_exact_slab_profiles(model, dipole, 1.5 / st, Rgb(1.0), &tabulated);
+    EXPECT_EQ(tabulated, 3);
+    const ChannelProfile r(*forward, alpha_prime, 0.0, 1.0, 1.5, 0), t(*forward, alpha_prime, 0.0, 1.0, 1.5, 1);
+    // R: that g's, times the half-spaces' R_inf(g) / R_inf(g node) (a thick slab reflects as the
+    // half-space, whose first orders depend on g); T: that g's.
+    const double half_ratio = model.channel(0)->total() / ChannelProfile(small_tables(), alpha_prime, 0.0, 1.0).total();
+    EXPECT_GT(std::fabs(half_ratio - 1.0), 0.01);
+    EXPECT_NEAR(thick.R_total[0], r.total() * half_ratio, 1e-12);
+    EXPECT_NEAR(thick.same->total()[0] / thick.R_total[0], 1.0, 0.005);
+    EXPECT_NEAR(thick.T_total[0], t.total() + t.single(), 1e-12);
+    // Where its own g holds it, its own g.
+    const SlabProfiles thin = make_exact_slab_profiles(model, dipole, 0.8 / st, Rgb(1.0), &tabulated);
+    EXPECT_EQ(tabulated, 3);
+    EXPECT_DOUBLE_EQ(thin.R_total[0], ChannelProfile(*forward, alpha_prime, g, 1.0, 0.8, 0).total());
+    // Too thin for any g: the multipole.
+    make_exact_slab_profiles(model, dipole, 0.1 / st, Rgb(1.0), &tabulated);
+    EXPECT_EQ(tabulated, 0);
+}
+
+// A g or ior within a float's precision of a node is that node (POV hands them over as floats:
+// g 0.9 arrived as 0.899999976 and took the 4-node stencil, whose g 0.95 node's slabs are twice
+// as many mean free paths thick).
+TEST(ExactSlabs, ANodeReadAsAFloatIsTheNode) {
+    const auto forward = small_forward_slab_tables();
+    const double at = ChannelProfile(*forward, 0.9, 0.5, 1.0, 0.9, 1).total();
+    EXPECT_EQ(ChannelProfile(*forward, 0.9, double(0.5f - 3e-8f), 1.0, 0.9, 1).total(), at);
+    EXPECT_EQ(ChannelProfile(*forward, 0.9, 0.5, double(1.3f), 0.9, 1).total(),
+              ChannelProfile(*forward, 0.9, 0.5, 1.3, 0.9, 1).total());
+    EXPECT_NE(ChannelProfile(*forward, 0.9, 0.49, 1.0, 0.9, 1).total(), at);
 }
 
 // Per channel: R and T from the tables where the thickness (transport mfp) lies in their nodes,

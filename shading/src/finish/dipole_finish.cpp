@@ -33,17 +33,18 @@ std::string medium_name(const DipoleParams& p, const Medium& m) {
                             : "dipole medium '" + p.preset + "'";
 }
 
-// The exact profile of `medium` from subsurface_profiles.ssp and, where found,
-// subsurface_slabs.ssp (without it thin objects use the multipole, and the statistics say so).
+// The exact profile of `medium` from subsurface_profiles.ssp and, where found, the slab files
+// (subsurface_slabs.ssp, g 0; subsurface_slabs_forward.ssp, g 0 to 0.95): without one that
+// covers the medium thin objects use the multipole, and the statistics say so. A slab file is
+// read only when the one before it does not cover the medium.
 std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const FindFile& find) {
-    const char *name = "subsurface_profiles.ssp", *slab_name = "subsurface_slabs.ssp";
+    const char* name = "subsurface_profiles.ssp";
     std::unique_ptr<FoundFile> file = find(name);
     if (!file)
         throw std::invalid_argument(std::string("dipole: profile exact needs '") + name +
                                     "' on the library path (make brdf-data builds it into build/brdf_data), "
                                     "or not permitted by the I/O restrictions; write `profile dipole` to use the "
                                     "dipole without it.");
-    std::unique_ptr<FoundFile> slab_file = find(slab_name);
     auto load = [](const FoundFile& in, const char* file_name) {
         const std::int64_t size = in.size();
         if (size < 0 || size > (std::int64_t(1) << 30))  // a folder can read as 2^63 - 1
@@ -57,9 +58,17 @@ std::shared_ptr<const ExactProfile> exact_profile(const Medium& medium, const Fi
     try {
         std::shared_ptr<const ProfileTables> tables =
             shared_profile_tables(file->key, [&]() { return load(*file, name); });
-        std::shared_ptr<const ProfileTables> slabs;
-        if (slab_file) slabs = shared_profile_tables(slab_file->key, [&]() { return load(*slab_file, slab_name); });
+        auto slab_tables = [&](const char* slab_name) -> std::shared_ptr<const ProfileTables> {
+            std::unique_ptr<FoundFile> slab_file = find(slab_name);
+            if (!slab_file) return nullptr;
+            return shared_profile_tables(slab_file->key, [&]() { return load(*slab_file, slab_name); });
+        };
+        std::shared_ptr<const ProfileTables> slabs = slab_tables(ExactProfile::kSlabFile), forward;
         profile = std::make_shared<const ExactProfile>(medium, tables, slabs);
+        if (!profile->slab_tables()) {
+            forward = slab_tables(ExactProfile::kForwardSlabFile);
+            if (forward) profile = std::make_shared<const ExactProfile>(medium, tables, slabs, forward);
+        }
     } catch (const std::exception& e) {
         throw std::invalid_argument(prefixed(e.what()));
     }

@@ -36,14 +36,16 @@ void check_identity(const ProfileTables& t, bool slabs) {
 }  // namespace
 
 ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
-                           std::shared_ptr<const ProfileTables> slab_tables)
-    : tables_(std::move(tables)), slab_tables_(std::move(slab_tables)) {
+                           std::shared_ptr<const ProfileTables> slab_tables,
+                           std::shared_ptr<const ProfileTables> forward_slab_tables)
+    : tables_(std::move(tables)) {
     const std::string bad = m.validate();
     if (!bad.empty()) throw std::invalid_argument("dipole medium: " + bad);
     if (!tables_) throw std::invalid_argument("exact profile: no tables");
     // Tables another generator made, or of another kind than asked for, are never used.
     check_identity(*tables_, false);
-    if (slab_tables_) check_identity(*slab_tables_, true);
+    if (slab_tables) check_identity(*slab_tables, true);
+    if (forward_slab_tables) check_identity(*forward_slab_tables, true);
     eta_ = m.eta;
     const ProfileBuildSettings& s = tables_->settings;
     const std::string range = ChannelProfile::range_error(*tables_, s.g.front(), m.eta, std::numeric_limits<double>::infinity());
@@ -69,14 +71,26 @@ ExactProfile::ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables>
         const double r = std::min(ch_[c]->radius_containing(1.0 - 1e-6), 1e6);
         cutoff_ = std::max(cutoff_, r / st_[c]);
     }
-    // Slab tables: every scattering channel's (g, eta) inside them (thickness: per node, slab.h).
-    if (!slab_tables_) {
-        slab_gap_ = "no slab tables";
-    } else if (slab_tables_->faces < 2) {
-        slab_gap_ = "the slab tables have no transmission face";
+    // Slab tables: the first set with every scattering channel's (g, eta) inside it (thickness:
+    // per node, slab.h): the isotropic file (more iors and photons), else the forward-scattering
+    // one; slab_gap_ says why neither where none does.
+    auto gap = [&](const ProfileTables* t) -> std::string {
+        if (!t) return "no slab tables";
+        if (t->faces < 2) return "the slab tables have no transmission face";
+        for (int c = 0; c < 3; ++c)
+            if (ch_[c]) {
+                std::string e = ChannelProfile::range_error(*t, g_[c], m.eta, 1.0);
+                if (!e.empty()) return e;
+            }
+        return "";
+    };
+    const std::string gap_iso = gap(slab_tables.get()), gap_forward = gap(forward_slab_tables.get());
+    if (gap_iso.empty()) {
+        slab_tables_ = std::move(slab_tables);
+    } else if (gap_forward.empty()) {
+        slab_tables_ = std::move(forward_slab_tables);
     } else {
-        for (int c = 0; c < 3 && slab_gap_.empty(); ++c)
-            if (ch_[c]) slab_gap_ = ChannelProfile::range_error(*slab_tables_, g_[c], m.eta, 1.0);
+        slab_gap_ = std::string(kSlabFile) + ": " + gap_iso + "\n  " + kForwardSlabFile + ": " + gap_forward;
     }
     build_exit_weights();
     for (const auto& [g, channels] : clamped) {
@@ -218,7 +232,7 @@ SlabProfiles ExactProfile::slab_profiles(const Dipole& dipole, double d, bool si
 std::string ExactProfile::slab_note() const {
     if (slab_tables()) return "";
     std::string note = "Dipole: thin objects with profile exact use the multipole, scaled to the\n"
-                       "  exact total; slab tables subsurface_slabs.ssp:\n  " + slab_gap();
+                       "  exact total; slab tables:\n  " + slab_gap();
     // A forward-scattering sheet's light is mostly low orders, which no diffusion profile holds:
     // say what it costs and what gets it right (walk_bench's sheets, DIPOLE.md 6a).
     double g = 0;
@@ -228,8 +242,9 @@ std::string ExactProfile::slab_note() const {
         note += "\n  A sheet a few mean free paths thin of a forward-scattering medium is lit\n"
                 "  mostly by low orders, which the multipole misses (Skin1 at g 0.9, ior 1,\n"
                 "  0.25 reduced mfp thick: seen through 99 % dark, its lit side 3.4x too\n"
-                "  bright): `method random_walk` (or `method auto`) follows its transport\n"
-                "  exactly.";
+                "  bright). " + std::string(kForwardSlabFile) + " (`make brdf-data`) holds\n"
+                "  g 0 to 0.95 at ior 1 to 1.5; elsewhere `method random_walk` (or `method\n"
+                "  auto`) follows the transport exactly.";
     return note;
 }
 
@@ -269,7 +284,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
     // the multipole.
     struct Channel {
         std::shared_ptr<const ChannelProfile> r, t;
-        double st = 0, t_scale = 1;
+        double st = 0, t_scale = 1, r_scale = 1;
         SlabChannel multipole;
         // the transmitted incidence factor: the tables' share of it (the rest the model's),
         // the model's decay rate and extrapolation distance (transport mfp), the slab's thickness
@@ -286,12 +301,34 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         if (!half) continue;  // does not scatter: nothing diffuses
         ++scattering;
         const double st = model.sigma_t_prime(c);
-        try {
-            x.r = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 0);
-            x.t = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), model.g(c), model.eta(), d * st, 1);
-        } catch (const std::invalid_argument&) {  // d outside the tables' slab nodes
-            x.r.reset();
-            x.t.reset();
+        // The tables' thickness axis is in mean free paths, d' / (1 - alpha g) at each g node: the
+        // forward file's last, 64 mfp, is 6.4 mfp' at g 0.9. A channel thicker than the tables
+        // hold at its own g takes their largest g node below it that holds it (similarity, which a
+        // thick slab's diffusion meets: Skin1 16 mfp' at g 0.9 taken as g 0, R within 2 %). The
+        // multipole there (60-70 % off seen through a g 0.9 sheet) put a step into the slab
+        // cache's interpolation beside the tables' last node: Marble at g 0.9 seen through 3-4
+        // mfp' read -12 to -18 %. Its reflection is then that g's scaled by the half-spaces' ratio,
+        // R_inf(g) / R_inf(g node): a thick slab's R is the half-space's, whose low orders near
+        // the face depend on g (Skin1's blue, 7.7 mfp' at g 0.9 taken as g 0.8, read +4.6 %).
+        const std::vector<double>& g_nodes = tables->settings.g;
+        for (int k = int(g_nodes.size());;) {
+            const double gq = k == int(g_nodes.size()) ? model.g(c) : g_nodes[std::size_t(k)];
+            try {
+                x.r = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), gq, model.eta(), d * st, 0);
+                x.t = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), gq, model.eta(), d * st, 1);
+                if (k < int(g_nodes.size())) {
+                    const ChannelProfile at_node(model.tables(), half->alpha_prime(), gq, model.eta());
+                    if (at_node.total() > 0) x.r_scale = half->total() / at_node.total();
+                }
+                break;
+            } catch (const std::invalid_argument&) {  // d outside the tables' slab nodes
+                x.r.reset();
+                x.t.reset();
+                if (!(d * st > tables->settings.thickness.front())) break;  // too thin: no g holds it
+                do --k;
+                while (k >= 0 && !(g_nodes[std::size_t(k)] < gq));
+                if (k < 0) break;
+            }
         }
         if (x.r) {
             ++from_tables;
@@ -302,7 +339,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
             x.multipole = SlabChannel::make(dipole.channel(c), d);
             const double t_all = x.t->total() + (single_traced ? 0.0 : x.t->single()), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
             x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
-            out.R_total[c] = x.r->total();
+            out.R_total[c] = x.r_scale * x.r->total();
             out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;
             const double t_multi = x.t->total();
             x.t_tabulated = t_multi > 0 ? std::clamp(std::log(t_multi / (0.2 * kTransmitTabulated)) / std::log(5.0), 0.0, 1.0)
@@ -333,7 +370,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         Rgb v;
         for (int c = 0; c < 3; ++c) {
             const Channel& x = (*ch)[c];
-            v[c] = x.r ? x.st * x.st * x.r->rd(r * x.st) : x.multipole.empty ? 0.0 : k[c] * x.multipole.R(r);
+            v[c] = x.r ? x.r_scale * x.st * x.st * x.r->rd(r * x.st) : x.multipole.empty ? 0.0 : k[c] * x.multipole.R(r);
         }
         return v;
     };
@@ -352,7 +389,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         same_disc = [ch](double R) {
             Rgb v;
             for (int c = 0; c < 3; ++c)
-                if ((*ch)[c].r) v[c] = (*ch)[c].r->disc(R * (*ch)[c].st);
+                if ((*ch)[c].r) v[c] = (*ch)[c].r_scale * (*ch)[c].r->disc(R * (*ch)[c].st);
             return v;
         };
     }

@@ -21,11 +21,15 @@ public:
     // lengths scaled by sigma_t' = (sigma_s' + sigma_a) mm_per_unit. A g outside the tables is
     // clamped to their range at the same reduced albedo (similarity; listed in notes()). Throws
     // std::invalid_argument for an invalid medium or an eta outside the tables.
-    // `slab_tables` (optional; make brdf-data ships subsurface_slabs.ssp): exact reflection and
+    // `slab_tables` (optional; make brdf-data ships kSlabFile, g 0): exact reflection and
     // transmission faces of slabs for thin geometry (make_exact_slab_profiles below), used
-    // where they cover every scattering channel's (g, eta); slab_gap() says why they don't.
+    // where they cover every scattering channel's (g, eta); else `forward_slab_tables`
+    // (kForwardSlabFile, g 0 to 0.95, fewer iors) where they do; slab_gap() says why neither.
     ExactProfile(const Medium& m, std::shared_ptr<const ProfileTables> tables,
-                 std::shared_ptr<const ProfileTables> slab_tables = nullptr);
+                 std::shared_ptr<const ProfileTables> slab_tables = nullptr,
+                 std::shared_ptr<const ProfileTables> forward_slab_tables = nullptr);
+    static constexpr const char* kSlabFile = "subsurface_slabs.ssp";
+    static constexpr const char* kForwardSlabFile = "subsurface_slabs_forward.ssp";
     // (The interface's overrides, in DipoleRadialProfile's order.)
     Rgb rd(double r) const override;
     Rgb rd_disc(double R) const override;
@@ -54,9 +58,10 @@ public:
     double sigma_t_prime(int c) const { return st_[c]; }  // per scene unit
     double g(int c) const { return g_[c]; }                 // the medium's (not clamped)
     double eta() const { return eta_; }
-    // The slab tables when they cover (g, eta) of every scattering channel, else nullptr; then
-    // slab_gap() says why (no file, or the g / ior outside it) for the statistics.
-    const ProfileTables* slab_tables() const { return slab_gap_.empty() ? slab_tables_.get() : nullptr; }
+    // The slab tables that cover (g, eta) of every scattering channel, else nullptr; then
+    // slab_gap() says why for each file (no file, or the g / ior outside it) for the statistics.
+    const ProfileTables* slab_tables() const { return slab_tables_.get(); }
+    const ProfileTables& tables() const { return *tables_; }  // the half-space's
     const std::string& slab_gap() const { return slab_gap_; }
 
 private:
