@@ -621,13 +621,22 @@ TEST(ExactSlabs, AForwardChannelThickerThanItsGHoldsTakesASmallerG) {
     const SlabProfiles thick = make_exact_slab_profiles(model, dipole, 1.5 / st, Rgb(1.0), &tabulated);
     EXPECT_EQ(tabulated, 3);
     const ChannelProfile r(*forward, alpha_prime, 0.0, 1.0, 1.5, 0), t(*forward, alpha_prime, 0.0, 1.0, 1.5, 1);
-    // R: that g's, times the half-spaces' R_inf(g) / R_inf(g node) (a thick slab reflects as the
-    // half-space, whose first orders depend on g); T: that g's.
-    const double half_ratio = model.channel(0)->total() / ChannelProfile(small_tables(), alpha_prime, 0.0, 1.0).total();
-    EXPECT_GT(std::fabs(half_ratio - 1.0), 0.01);
-    EXPECT_NEAR(thick.R_total[0], r.total() * half_ratio, 1e-12);
+    // Both faces: that g's, times the ratio of the channel's own g to the node's at the thickest
+    // slab its own g holds, d* = 2 mfp x (1 - alpha g): continuous there.
+    const double alpha = alpha_prime / (1.0 - g + alpha_prime * g), d_star = 2.0 * (1.0 - alpha * g);
+    const ChannelProfile r_own(*forward, alpha_prime, g, 1.0, d_star * 0.9999, 0), t_own(*forward, alpha_prime, g, 1.0, d_star * 0.9999, 1);
+    const ChannelProfile r_node(*forward, alpha_prime, 0.0, 1.0, d_star, 0), t_node(*forward, alpha_prime, 0.0, 1.0, d_star, 1);
+    const double r_ratio = r_own.total() / r_node.total();
+    const double t_ratio = (t_own.total() + t_own.single()) / (t_node.total() + t_node.single());
+    EXPECT_GT(std::fabs(r_ratio - 1.0), 0.01);
+    EXPECT_NEAR(thick.R_total[0] / (r.total() * r_ratio), 1.0, 2e-3);
     EXPECT_NEAR(thick.same->total()[0] / thick.R_total[0], 1.0, 0.005);
-    EXPECT_NEAR(thick.T_total[0], t.total() + t.single(), 1e-12);
+    EXPECT_NEAR(thick.T_total[0] / ((t.total() + t.single()) * t_ratio), 1.0, 2e-3);
+    // ... continuous across d*: just under it the channel's own g, just over it the node, scaled
+    const SlabProfiles under = make_exact_slab_profiles(model, dipole, d_star * 0.999 / st, Rgb(1.0));
+    const SlabProfiles over = make_exact_slab_profiles(model, dipole, d_star * 1.001 / st, Rgb(1.0));
+    EXPECT_NEAR(over.R_total[0] / under.R_total[0], 1.0, 0.003);
+    EXPECT_NEAR(over.T_total[0] / under.T_total[0], 1.0, 0.005);
     // Where its own g holds it, its own g.
     const SlabProfiles thin = make_exact_slab_profiles(model, dipole, 0.8 / st, Rgb(1.0), &tabulated);
     EXPECT_EQ(tabulated, 3);

@@ -284,7 +284,7 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
     // the multipole.
     struct Channel {
         std::shared_ptr<const ChannelProfile> r, t;
-        double st = 0, t_scale = 1, r_scale = 1;
+        double st = 0, t_scale = 1, r_scale = 1, t_ratio = 1;
         SlabChannel multipole;
         // the transmitted incidence factor: the tables' share of it (the rest the model's),
         // the model's decay rate and extrapolation distance (transport mfp), the slab's thickness
@@ -307,9 +307,11 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
         // thick slab's diffusion meets: Skin1 16 mfp' at g 0.9 taken as g 0, R within 2 %). The
         // multipole there (60-70 % off seen through a g 0.9 sheet) put a step into the slab
         // cache's interpolation beside the tables' last node: Marble at g 0.9 seen through 3-4
-        // mfp' read -12 to -18 %. Its reflection is then that g's scaled by the half-spaces' ratio,
-        // R_inf(g) / R_inf(g node): a thick slab's R is the half-space's, whose low orders near
-        // the face depend on g (Skin1's blue, 7.7 mfp' at g 0.9 taken as g 0.8, read +4.6 %).
+        // mfp' read -12 to -18 %. Both faces are then scaled by their ratio of the channel's own g
+        // to the node's at the thickest slab its own g holds, d*: continuous at d*, and the
+        // boundary layers that set the ratio are a thick slab's whatever its thickness (Skin1's
+        // blue, 7.7 mfp' at g 0.9 taken as g 0.8 unscaled, read +4.6 % on the lit side of a 4 mfp'
+        // sheet; Marble seen through 16 mfp' -12 %).
         const std::vector<double>& g_nodes = tables->settings.g;
         for (int k = int(g_nodes.size());;) {
             const double gq = k == int(g_nodes.size()) ? model.g(c) : g_nodes[std::size_t(k)];
@@ -317,8 +319,28 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
                 x.r = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), gq, model.eta(), d * st, 0);
                 x.t = std::make_shared<const ChannelProfile>(*tables, half->alpha_prime(), gq, model.eta(), d * st, 1);
                 if (k < int(g_nodes.size())) {
-                    const ChannelProfile at_node(model.tables(), half->alpha_prime(), gq, model.eta());
-                    if (at_node.total() > 0) x.r_scale = half->total() / at_node.total();
+                    const double ap = half->alpha_prime(), g = model.g(c), eta = model.eta();
+                    auto holds = [&](double dt) {
+                        try {
+                            ChannelProfile(*tables, ap, g, eta, dt, 0);
+                            return true;
+                        } catch (const std::invalid_argument&) {
+                            return false;
+                        }
+                    };
+                    double lo = tables->settings.thickness.front(), hi = d * st;
+                    if (holds(lo)) {
+                        for (int it = 0; it < 40 && hi > lo * 1.001; ++it) {  // ~12 constructions
+                            const double mid = std::sqrt(lo * hi);
+                            (holds(mid) ? lo : hi) = mid;
+                        }
+                        const ChannelProfile r_own(*tables, ap, g, eta, lo, 0), t_own(*tables, ap, g, eta, lo, 1);
+                        const ChannelProfile r_node(*tables, ap, gq, eta, lo, 0), t_node(*tables, ap, gq, eta, lo, 1);
+                        const double single = single_traced ? 0.0 : 1.0;
+                        const double t_o = t_own.total() + single * t_own.single(), t_n = t_node.total() + single * t_node.single();
+                        if (r_node.total() > 0) x.r_scale = r_own.total() / r_node.total();
+                        if (t_n > 0) x.t_ratio = t_o / t_n;
+                    }
                 }
                 break;
             } catch (const std::invalid_argument&) {  // d outside the tables' slab nodes
@@ -337,7 +359,8 @@ SlabProfiles make_exact_slab_profiles(const ExactProfile& model, const Dipole& d
             // transmission profile is photon noise near rho = 0 beyond a few mfp: slab.h); its
             // multiple scattering alone where the finish traces single scattering itself.
             x.multipole = SlabChannel::make(dipole.channel(c), d);
-            const double t_all = x.t->total() + (single_traced ? 0.0 : x.t->single()), t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
+            const double t_all = x.t_ratio * (x.t->total() + (single_traced ? 0.0 : x.t->single()));
+            const double t_multipole = x.multipole.empty ? 0.0 : x.multipole.T_total();
             x.t_scale = t_multipole > 1e-300 ? t_all / t_multipole : 0.0;
             out.R_total[c] = x.r_scale * x.r->total();
             out.T_total[c] = x.t_scale > 0 ? t_all : 0.0;
