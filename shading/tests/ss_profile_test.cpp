@@ -637,6 +637,14 @@ TEST(ExactSlabs, AForwardChannelThickerThanItsGHoldsTakesASmallerG) {
     const SlabProfiles over = make_exact_slab_profiles(model, dipole, d_star * 1.001 / st, Rgb(1.0));
     EXPECT_NEAR(over.R_total[0] / under.R_total[0], 1.0, 0.003);
     EXPECT_NEAR(over.T_total[0] / under.T_total[0], 1.0, 0.005);
+    // ... and so are the faces' exit distributions (its own g's at d*, not the node's)
+    for (double cos_o : {1.0, 0.6, 0.3}) {
+        Rgb same_under, through_under, same_over, through_over;
+        under.exit(cos_o, &same_under, &through_under);
+        over.exit(cos_o, &same_over, &through_over);
+        EXPECT_NEAR(same_over[0] / same_under[0], 1.0, 0.003) << cos_o;
+        EXPECT_NEAR(through_over[0] / through_under[0], 1.0, 0.003) << cos_o;
+    }
     // Where its own g holds it, its own g.
     const SlabProfiles thin = make_exact_slab_profiles(model, dipole, 0.8 / st, Rgb(1.0), &tabulated);
     EXPECT_EQ(tabulated, 3);
