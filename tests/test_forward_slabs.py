@@ -33,12 +33,7 @@ def views():
 
 
 def render_sheet(fork, name: str, eta: float, g: float, d: float, view: np.ndarray, extra: str = ""):
-    right = np.cross([0.0, 1.0, 0.0], view)
-    right /= np.linalg.norm(right)
-    up = np.cross(view, right)
-    cam = dict(loc=wb.vec(60 * view + np.array([0, 0, -d if view[2] < 0 else 0])), dir=wb.vec(-view),
-               right=wb.vec(2 * right), up=wb.vec(2 * up))
-    scene = wb.SHEET.format(bottom=-d, dipole=wb.medium_text(name, g, eta) + extra, **cam)
+    scene = wb.SHEET.format(bottom=-d, dipole=wb.medium_text(name, g, eta) + extra, **wb.sheet_camera(view, d))
     r = runner.render(scene, fork, width=8, height=8, float_exr=True, threads=2)
     img = r.image[..., :3].astype(np.float64).reshape(-1, 3)
     assert np.isfinite(img).all() and (img >= 0).all(), "NaN or negative pixels"

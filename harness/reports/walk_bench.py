@@ -216,6 +216,16 @@ box {{ <-120, -120, {bottom}>, <120, 120, 0> texture {{ pigment {{ rgb 1 }} fini
 TRACED = 16
 
 
+def sheet_camera(view: np.ndarray, d: float) -> dict:
+    """SHEET's orthographic camera along -view (unit; z > 0 the lit face, z < 0 the face at
+    -d), 2 units across, centred on the sheet."""
+    right = np.cross([0.0, 1.0, 0.0], view)
+    right /= np.linalg.norm(right)
+    up = np.cross(view, right)
+    return dict(loc=vec(60 * view + np.array([0, 0, -d if view[2] < 0 else 0])), dir=vec(-view),
+                right=vec(2 * right), up=vec(2 * up))
+
+
 def sheet_rows(args, fork) -> list[dict]:
     rows = []
     for name in args.media:
@@ -235,11 +245,7 @@ def sheet_rows(args, fork) -> list[dict]:
                     ref_s = time.perf_counter() - t0
                     for k, (side, angle, view) in enumerate(views):
                         want, want_err = ref.radiance[:, k], ref.radiance_err[:, k]
-                        right = np.cross([0.0, 1.0, 0.0], view)
-                        right /= np.linalg.norm(right)
-                        up = np.cross(view, right)
-                        cam = dict(loc=vec((60 * view) + np.array([0, 0, -d if side < 0 else 0])),
-                                   dir=vec(-view), right=vec(2 * right), up=vec(2 * up))
+                        cam = sheet_camera(view, d)
                         row = dict(scene="sheet", medium=name, eta=eta, g=g, mfp=mfps, d=d,
                                    side="reflected" if side > 0 else "transmitted", view=angle,
                                    ref=want.tolist(), ref_seconds=ref_s / len(views),

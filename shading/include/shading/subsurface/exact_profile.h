@@ -61,7 +61,6 @@ public:
     // The slab tables that cover (g, eta) of every scattering channel, else nullptr; then
     // slab_gap() says why for each file (no file, or the g / ior outside it) for the statistics.
     const ProfileTables* slab_tables() const { return slab_tables_.get(); }
-    const ProfileTables& tables() const { return *tables_; }  // the half-space's
     const std::string& slab_gap() const { return slab_gap_; }
 
 private:
