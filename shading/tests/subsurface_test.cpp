@@ -433,6 +433,46 @@ TEST(SubsurfaceDirectional, HalfLitPlaneFollowsTheSmearedEdgeIntegral) {
     std::printf("half-lit plane, shifted: worst %.4f of the total (the unshifted profile %.3f away)\n", worst, moved);
 }
 
+// Single scattering next to a slanted shadow's edge (Subsurface::single_scatter_upstream): the
+// light that scatters once under x toward an eye straight above entered at x - t z tan_l, z
+// exponential with mean L = tan_l / (sigma_t (1 + 1/mu_l)) per channel, so behind a sharp edge
+// d upstream the share of it that is lit is 1 - e^(-d/L). With the light's own visibility
+// (`light_at`) the step is located by bisection: within kUpstreamStepTol of that share, light at
+// 45 and 70 degrees; the cloud's light alone (its window smooths the edge over a few spacings)
+// is further off than this (measured: the two below).
+constexpr double kUpstreamStepTol = 5e-3;
+
+TEST(SubsurfaceDirectional, SingleScatteringUpstreamOfAShadowsEdgeIsTheLitShare) {
+    const Subsurface s(marble(), SubsurfaceSettings{});
+    const double h = 0.1;
+    const PointCloud c(plane(12.0, h, [](double x, double) { return Rgb(x > 0 ? 1.0 : 0.0); }), h, s.near_reflectance(h));
+    const std::function<Rgb(const Vec3&)> light_at = [](const Vec3& y) { return Rgb(y.x > 0 ? 1.0 : 0.0); };
+    const Vec3 n(0, 0, 1);
+    const Rgb st = s.dipole().medium().sigma_t() * s.dipole().medium().mm_per_unit;
+    double worst = 0, worst_cloud = 0;
+    for (double deg : {45.0, 70.0}) {
+        const double th = deg * kPi / 180;
+        const Vec3 to_light(-std::sin(th), 0, std::cos(th));  // the beams travel toward +x inside
+        const double mu_l = refracted_cos(std::cos(th), s.dipole().medium().eta);
+        const double tan_l = std::sqrt(1 - mu_l * mu_l) / mu_l;
+        for (double d : {0.02, 0.07, 0.15, 0.3, 0.6}) {
+            const Vec3 x(d, 0.013, 0);
+            const Rgb got = s.single_scatter_upstream(c, x, n, n, to_light, &light_at);
+            const Rgb cloud = s.single_scatter_upstream(c, x, n, n, to_light);
+            for (int k = 0; k < 3; ++k) {
+                const double L = tan_l / (st[k] * (1 + 1 / mu_l));
+                const double want = -std::expm1(-d / L);
+                EXPECT_NEAR(got[k], want, kUpstreamStepTol) << deg << " deg, d " << d << " c " << k;
+                worst = std::max(worst, std::fabs(got[k] - want));
+                worst_cloud = std::max(worst_cloud, std::fabs(cloud[k] - want));
+            }
+        }
+    }
+    EXPECT_GT(worst_cloud, 4 * kUpstreamStepTol);  // what the light's own visibility corrects
+    std::printf("single scattering upstream of an edge: worst %.5f of the light (the cloud's alone %.4f)\n", worst,
+                worst_cloud);
+}
+
 TEST(SubsurfaceDirectional, HierarchyAgreesWithTheExactSum) {
     SubsurfaceSettings st;
     Subsurface s(marble(), st);

@@ -321,7 +321,13 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
             if (!(cos_i > 0)) continue;
             Rgb f = subsurface.dipole().single_scatter_brdf(wo, frame.to_local(to_light));
             if (!(f.max_component() > 0)) continue;
-            if (upstream) f = f * (ratios[i] = subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light));
+            if (upstream) {
+                // the light's own visibility upstream, where a shadow's edge is in reach
+                const std::function<Rgb(const Vec3&)> light_at = [&](const Vec3& y) {
+                    return object.light_colour(i, y, n, to_light);
+                };
+                f = f * (ratios[i] = subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light, &light_at));
+            }
             single += object.light_colour(i, x, n, to_light) * f * (kPi * cos_i);
         }
     }

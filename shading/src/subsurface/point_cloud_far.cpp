@@ -593,6 +593,35 @@ void PointCloud::window_sum(const Vec3& x, const Vec3& nx, double h, double smal
     }
 }
 
+bool PointCloud::flat_within(const Vec3& x, const Vec3& nx, double radius, double cos_min) const {
+    if (nodes_.empty()) return true;
+    const double r2 = radius * radius;
+    int stack[8 * kMaxDepth + 16];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const int k = stack[--top];
+        const Node& nd = nodes_[k];
+        if (box_distance2(x, nd.lo, nd.hi) > r2) continue;
+        // the least cosine any normal of the node can have with nx: cos(a + angle), a the angle
+        // from the cone's axis to nx
+        const Cone& cone = cones_[k];
+        const double ca = std::clamp(double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z,
+                                     -1.0, 1.0);
+        const double a = std::acos(ca) + double(cone.angle);
+        if (a < kPi && std::cos(a) >= cos_min) continue;  // every normal in it is close enough
+        if (nd.child < 0) {
+            for (int i = nd.first; i < nd.first + nd.count; ++i) {
+                const Vec3 v = points_[i].p - x;
+                if (dot(v, v) <= r2 && dot(points_[i].n, nx) < cos_min) return false;
+            }
+            continue;
+        }
+        for (int c = nd.child; c < nd.child + nd.children; ++c) stack[top++] = c;
+    }
+    return true;
+}
+
 double PointCloud::mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const {
     // Each point for its own area (a quadrature over the surface, whatever the sampling's
     // density); least squares of (nx - n_i).v - H r2 with weights A w / r2: its normal equation

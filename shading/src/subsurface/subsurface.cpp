@@ -249,8 +249,34 @@ std::shared_ptr<const PointCloud> Subsurface::build(const ParallelFor& parallel,
     return cloud;
 }
 
+namespace {
+
+// single_scatter_upstream: the cloud's light along the line changes where some node's differs
+// from x's by more than this fraction (a shadow's edge in reach; ...
+constexpr double kUpstreamChange = 0.02;
+// ... and x's face is flat over it where every normal within the line's weighted reach (3 of
+// the longest channel's mean offsets) is within this angle, over the light's inside tangent, of
+// x's: the cosine of incidence then changes along the line by under 1 %, and the light's
+// visibility alone is the ratio of the light upstream to the light at x. (The mean curvature
+// is no test of it: a saddle's is 0, and on the study's bumpy mesh the line's shadow rays left
+// from inside the bumps.)
+constexpr double kUpstreamFlat = 0.01;
+// Bisections that locate a step of the light's visibility between two nodes of the line.
+constexpr int kUpstreamBisections = 6;
+
+// integral over [a, b] (in units of the mean offset) of e^-t times the linear interpolant of
+// f0 at a and f1 at b
+double exp_linear(double a, double b, double f0, double f1) {
+    const double ea = std::exp(-a), eb = std::exp(-b), w = b - a;
+    const double i0 = ea - eb;                      // integral e^-t
+    const double i1 = (a + 1) * ea - (b + 1) * eb;  // integral t e^-t
+    return (f0 * (b * i0 - i1) + f1 * (i1 - a * i0)) / w;
+}
+
+}  // namespace
+
 Rgb Subsurface::single_scatter_upstream(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                                        const Vec3& to_light) const {
+                                        const Vec3& to_light, const std::function<Rgb(const Vec3&)>* light_at) const {
     const double eta = dipole_.medium().eta;
     // inside tangent of a ray at outside cosine c, and the unit tangential direction its
     // refracted continuation travels along (away from the side it came from)
@@ -293,18 +319,63 @@ Rgb Subsurface::single_scatter_upstream(const PointCloud& cloud, const Vec3& x, 
         const Vec3 y = x + dir * d[j];
         e[j] = cloud.irradiance_about(y, cloud.level_spacing(cloud.lookup_level(y)));
     }
+    // A shadow's edge on a flat face: the light's own visibility along the line (its colour
+    // there over at x, per channel), each step between two nodes located by bisection; between
+    // nodes where it does not step, linear.
+    double step_at[kSteps];  // where the visibility steps from node j's to node j+1's; -1: linear
+    bool visible = false;
+    if (light_at) {
+        bool changes = false;
+        for (int j = 1; j <= kSteps && !changes; ++j)
+            for (int c = 0; c < 3; ++c)
+                if (std::fabs(e[j][c] - e[0][c]) > kUpstreamChange * e[0][c]) changes = true;
+        if (changes && cloud.flat_within(x, n, 3.0 * lmax, std::cos(kUpstreamFlat / std::max(1.0, tan_l)))) {
+            const Rgb here = (*light_at)(x);
+            if (here.max_component() > 0) {
+                visible = true;
+                auto vis = [&](double t) {
+                    const Rgb l = (*light_at)(x + dir * t);
+                    Rgb v;
+                    for (int c = 0; c < 3; ++c) v[c] = here[c] > 0 ? l[c] / here[c] : 0.0;
+                    return v;
+                };
+                e[0] = Rgb(1.0);
+                for (int j = 1; j <= kSteps; ++j) e[j] = vis(d[j]);
+                for (int j = 0; j < kSteps; ++j) {
+                    step_at[j] = -1;
+                    double jump = 0;
+                    for (int c = 0; c < 3; ++c) jump = std::max(jump, std::fabs(e[j + 1][c] - e[j][c]));
+                    if (!(jump > kUpstreamChange)) continue;
+                    // the last point still like node j's, the first like node j+1's
+                    double lo = d[j], hi = d[j + 1];
+                    for (int b = 0; b < kUpstreamBisections; ++b) {
+                        const double mid = 0.5 * (lo + hi);
+                        const Rgb v = vis(mid);
+                        double to_lo = 0, to_hi = 0;
+                        for (int c = 0; c < 3; ++c) {
+                            to_lo = std::max(to_lo, std::fabs(v[c] - e[j][c]));
+                            to_hi = std::max(to_hi, std::fabs(v[c] - e[j + 1][c]));
+                        }
+                        (to_lo <= to_hi ? lo : hi) = mid;
+                    }
+                    step_at[j] = 0.5 * (lo + hi);
+                }
+            }
+        }
+    }
     for (int c = 0; c < 3; ++c) {
         if (!(e[0][c] > 0) || !(L[c] > 0)) continue;
-        // integral of e^(-d/L)/L times the linear interpolant on [d_j, d_j+1], the last value
-        // held beyond d_K
+        // integral of e^(-d/L)/L times the linear interpolant on [d_j, d_j+1] (or the step
+        // located in it), the last value held beyond d_K
         double avg = 0;
         for (int j = 0; j < kSteps; ++j) {
-            const double a = d[j] / L[c], b = d[j + 1] / L[c], ea = std::exp(-a), eb = std::exp(-b);
-            const double w = b - a;
-            // integral over [a, b] of e^-t (f0 (b - t) + f1 (t - a)) / w dt
-            const double i0 = ea - eb;                                   // integral e^-t
-            const double i1 = (a + 1) * ea - (b + 1) * eb;               // integral t e^-t
-            avg += (e[j][c] * (b * i0 - i1) + e[j + 1][c] * (i1 - a * i0)) / w;
+            const double a = d[j] / L[c], b = d[j + 1] / L[c];
+            if (visible && step_at[j] >= 0) {
+                const double s = step_at[j] / L[c];
+                avg += e[j][c] * (std::exp(-a) - std::exp(-s)) + e[j + 1][c] * (std::exp(-s) - std::exp(-b));
+            } else {
+                avg += exp_linear(a, b, e[j][c], e[j + 1][c]);
+            }
         }
         avg += e[kSteps][c] * std::exp(-d[kSteps] / L[c]);
         // the part of the light upstream that is there: a shadow's visibility, never above 1

@@ -167,6 +167,10 @@ public:
     // plane; points whose normal faces away from nx (n_i.nx <= 0: a sheet's other face) are
     // left out; 0 where no other point is.
     double mean_curvature_about(const Vec3& x, const Vec3& nx, double h) const;
+    // Whether every point within `radius` of x has a normal within the angle whose cosine is
+    // cos_min of nx (a flat face there; a sheet's other face, a crease or a bump is not); the
+    // search prunes nodes by their normal cones and stops at the first point that is not.
+    bool flat_within(const Vec3& x, const Vec3& nx, double radius, double cos_min) const;
     // Directional clouds: per channel the divergence of the lit points' shift field about x
     // (across x's tangent plane, the window of spacing h, each point by its area: a weighted
     // least-squares linear fit s = s0 + J d, div = tr J). The shifts as the light gave them
