@@ -493,9 +493,7 @@ void PointCloud::build_shifts(const ParallelFor* parallel) {
             // angle from the cone's axis to pt.n (-1 once a + angle reaches pi).
             auto least = [&](int k) {
                 const Cone& cone = cones_[k];
-                const double ca = std::clamp(double(cone.axis[0]) * pt.n.x + double(cone.axis[1]) * pt.n.y +
-                                                 double(cone.axis[2]) * pt.n.z,
-                                             -1.0, 1.0);
+                const double ca = std::clamp(cone.axis_cos(pt.n), -1.0, 1.0);
                 const double cc = curve_[k].cone_cos;
                 return ca <= -cc ? -1.0 : ca * cc - std::sqrt(1.0 - ca * ca) * cone_sin[k];
             };

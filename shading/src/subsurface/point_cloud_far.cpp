@@ -178,7 +178,7 @@ Rgb PointCloud::far_sum(const RdProfile& same, const RdProfile* transmit, const 
             // The cone's axis at angle phi from nx, half-angle c: every normal has dot > 0 with
             // nx when phi + c < pi/2, dot < 0 when phi - c > pi/2.
             const Cone& cc = cones_[k];
-            const double phi = std::acos(std::max(-1.0, std::min(1.0, cc.axis[0] * nx.x + cc.axis[1] * nx.y + cc.axis[2] * nx.z)));
+            const double phi = std::acos(std::max(-1.0, std::min(1.0, cc.axis_cos(nx))));
             if (phi + cc.angle < kHalfPi) side = 1;
             else if (phi - cc.angle > kHalfPi) side = 2;
             agg_side = side != 0 ? side : (cc.angle < kHalfPi ? (phi < kHalfPi ? 1 : 2) : 0);
@@ -572,7 +572,7 @@ void PointCloud::window_sum(const Vec3& x, const Vec3& nx, double h, double smal
             // every normal within acos(min_cos) of nx: phi + a below it, phi the angle from the
             // cone's axis to nx, a the cone's half-angle
             const Cone& cone = cones_[k];
-            const double ca = std::min(1.0, double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z);
+            const double ca = std::min(1.0, cone.axis_cos(nx));
             const double cc = curve_[k].cone_cos, sa = std::sqrt(std::max(0.0, 1.0 - ca * ca));
             const double sc = std::sqrt(std::max(0.0, 1.0 - cc * cc));
             if (ca > 0 && cc > 0 && ca * cc - sa * sc > min_cos) {
@@ -606,8 +606,7 @@ bool PointCloud::flat_within(const Vec3& x, const Vec3& nx, double radius, doubl
         // the least cosine any normal of the node can have with nx: cos(a + angle), a the angle
         // from the cone's axis to nx
         const Cone& cone = cones_[k];
-        const double ca = std::clamp(double(cone.axis[0]) * nx.x + double(cone.axis[1]) * nx.y + double(cone.axis[2]) * nx.z,
-                                     -1.0, 1.0);
+        const double ca = std::clamp(cone.axis_cos(nx), -1.0, 1.0);
         const double a = std::acos(ca) + double(cone.angle);
         if (a < kPi && std::cos(a) >= cos_min) continue;  // every normal in it is close enough
         if (nd.child < 0) {

@@ -214,6 +214,9 @@ private:
     struct Cone {            // the node's normals: all within `angle` (radians) of `axis`
         float axis[3];
         float angle;
+        double axis_cos(const Vec3& v) const {  // axis . v, unclamped
+            return double(axis[0]) * v.x + double(axis[1]) * v.y + double(axis[2]) * v.z;
+        }
     };
     struct Merge {           // while building: the weights of the centres (flux over channels, area)
         double wsum, area;
