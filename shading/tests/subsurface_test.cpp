@@ -437,7 +437,7 @@ TEST(SubsurfaceDirectional, HalfLitPlaneFollowsTheSmearedEdgeIntegral) {
 // light that scatters once under x toward an eye straight above entered at x - t z tan_l, z
 // exponential with mean L = tan_l / (sigma_t (1 + 1/mu_l)) per channel, so behind a sharp edge
 // d upstream the share of it that is lit is 1 - e^(-d/L). With the light's own visibility
-// (`light_at`) the step is located by bisection: within kUpstreamStepTol of that share, light at
+// (`light`) the step is located by bisection: within kUpstreamStepTol of that share, light at
 // 45 and 70 degrees; the cloud's light alone (its window smooths the edge over a few spacings)
 // is further off than this (measured: the two below).
 constexpr double kUpstreamStepTol = 5e-3;
@@ -446,7 +446,9 @@ TEST(SubsurfaceDirectional, SingleScatteringUpstreamOfAShadowsEdgeIsTheLitShare)
     const Subsurface s(marble(), SubsurfaceSettings{});
     const double h = 0.1;
     const PointCloud c(plane(12.0, h, [](double x, double) { return Rgb(x > 0 ? 1.0 : 0.0); }), h, s.near_reflectance(h));
-    const std::function<Rgb(const Vec3&)> light_at = [](const Vec3& y) { return Rgb(y.x > 0 ? 1.0 : 0.0); };
+    struct Edge final : LightAlongLine {
+        Rgb at(const Vec3& y) const override { return Rgb(y.x > 0 ? 1.0 : 0.0); }
+    };
     const Vec3 n(0, 0, 1);
     const Rgb st = s.dipole().medium().sigma_t() * s.dipole().medium().mm_per_unit;
     double worst = 0, worst_cloud = 0;
@@ -457,7 +459,9 @@ TEST(SubsurfaceDirectional, SingleScatteringUpstreamOfAShadowsEdgeIsTheLitShare)
         const double tan_l = std::sqrt(1 - mu_l * mu_l) / mu_l;
         for (double d : {0.02, 0.07, 0.15, 0.3, 0.6}) {
             const Vec3 x(d, 0.013, 0);
-            const Rgb got = s.single_scatter_upstream(c, x, n, n, to_light, &light_at);
+            Edge light;
+            light.here = Rgb(1.0);  // x is lit (d > 0)
+            const Rgb got = s.single_scatter_upstream(c, x, n, n, to_light, &light);
             const Rgb cloud = s.single_scatter_upstream(c, x, n, n, to_light);
             for (int k = 0; k < 3; ++k) {
                 const double L = tan_l / (st[k] * (1 + 1 / mu_l));

@@ -321,14 +321,23 @@ Rgb finish_subsurface_radiance(const FinishModel& model, const void* key, Dipole
             if (!(cos_i > 0)) continue;
             Rgb f = subsurface.dipole().single_scatter_brdf(wo, frame.to_local(to_light));
             if (!(f.max_component() > 0)) continue;
+            const Rgb lit = object.light_colour(i, x, n, to_light);
+            if (!(lit.max_component() > 0)) continue;  // in this light's shadow: nothing from upstream either
             if (upstream) {
                 // the light's own visibility upstream, where a shadow's edge is in reach
-                const std::function<Rgb(const Vec3&)> light_at = [&](const Vec3& y) {
-                    return object.light_colour(i, y, n, to_light);
-                };
-                f = f * (ratios[i] = subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light, &light_at));
+                struct Along final : LightAlongLine {
+                    DipoleObject& object;
+                    int i;
+                    const Vec3 &n, &to_light;
+                    Along(DipoleObject& o, int light, const Vec3& normal, const Vec3& l, const Rgb& at_x)
+                        : object(o), i(light), n(normal), to_light(l) {
+                        here = at_x;
+                    }
+                    Rgb at(const Vec3& y) const override { return object.light_colour(i, y, n, to_light); }
+                } along(object, i, n, to_light, lit);
+                f = f * (ratios[i] = subsurface.single_scatter_upstream(*cloud, x, n, to_eye, to_light, &along));
             }
-            single += object.light_colour(i, x, n, to_light) * f * (kPi * cos_i);
+            single += lit * f * (kPi * cos_i);
         }
     }
     if (!cloud) cloud = &subsurface.cloud(key, sampler);

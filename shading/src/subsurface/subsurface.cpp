@@ -276,7 +276,7 @@ double exp_linear(double a, double b, double f0, double f1) {
 }  // namespace
 
 Rgb Subsurface::single_scatter_upstream(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                                        const Vec3& to_light, const std::function<Rgb(const Vec3&)>* light_at) const {
+                                        const Vec3& to_light, const LightAlongLine* light) const {
     const double eta = dipole_.medium().eta;
     // inside tangent of a ray at outside cosine c, and the unit tangential direction its
     // refracted continuation travels along (away from the side it came from)
@@ -324,17 +324,17 @@ Rgb Subsurface::single_scatter_upstream(const PointCloud& cloud, const Vec3& x, 
     // nodes where it does not step, linear.
     double step_at[kSteps];  // where the visibility steps from node j's to node j+1's; -1: linear
     bool visible = false;
-    if (light_at) {
+    if (light) {
         bool changes = false;
         for (int j = 1; j <= kSteps && !changes; ++j)
             for (int c = 0; c < 3; ++c)
                 if (std::fabs(e[j][c] - e[0][c]) > kUpstreamChange * e[0][c]) changes = true;
         if (changes && cloud.flat_within(x, n, 3.0 * lmax, std::cos(kUpstreamFlat / std::max(1.0, tan_l)))) {
-            const Rgb here = (*light_at)(x);
+            const Rgb& here = light->here;
             if (here.max_component() > 0) {
                 visible = true;
                 auto vis = [&](double t) {
-                    const Rgb l = (*light_at)(x + dir * t);
+                    const Rgb l = light->at(x + dir * t);
                     Rgb v;
                     for (int c = 0; c < 3; ++c) v[c] = here[c] > 0 ? l[c] / here[c] : 0.0;
                     return v;

@@ -38,7 +38,6 @@
 // includes them all: the finish adapter and the patches see the whole finish through it.
 #pragma once
 
-#include <functional>
 #include <limits>
 
 #include <memory>
@@ -129,6 +128,17 @@ struct SubsurfaceSettings {
 // What one `dipole { }` finish holds: the medium, its settings, the radial profile (the model,
 // radial_profile.h, and its table make_rd_profile(model) that the octree reads), the
 // per-object clouds and the slabs of thin geometry.
+// One light's colour arriving at points of a face, after shadows (Subsurface::
+// single_scatter_upstream; the finish's DipoleObject::light_colour), and `here`, at the shaded
+// point itself, which the caller has already.
+struct LightAlongLine {
+    Rgb here;
+    virtual Rgb at(const Vec3& y) const = 0;
+
+protected:
+    ~LightAlongLine() = default;
+};
+
 class Subsurface {
 public:
     // model: the radial profile to integrate, its exit and entry factors (null: the dipole of
@@ -178,14 +188,14 @@ public:
     // channel, t exponential): the cloud's transmitted irradiance there over its irradiance
     // about x, per channel, at most 1 (1 where the cloud has none about x). Multiplies the
     // half-space's single-scattering BRDF.
-    // `light_at` (may be null): this light's colour arriving at a point of x's face, after
-    // shadows (DipoleObject::light_colour). Where the cloud's light changes along the line (a
+    // `light` (may be null): this light's colour arriving at points of x's face, after shadows
+    // (DipoleObject::light_colour), and at x. Where the cloud's light changes along the line (a
     // shadow's edge within reach) and the face is flat over it, the ratio is the light's own
     // visibility along the line instead, its steps located to 1/64 of their interval (the
     // cloud's window smooths a shadow's edge over a few sample spacings: Ketchup's edge under
     // light at 70 degrees read +8.6 % of the plateau one pixel into the light).
     Rgb single_scatter_upstream(const PointCloud& cloud, const Vec3& x, const Vec3& n, const Vec3& to_eye,
-                                const Vec3& to_light, const std::function<Rgb(const Vec3&)>* light_at = nullptr) const;
+                                const Vec3& to_light, const LightAlongLine* light = nullptr) const;
     // `method auto`: whether the object `key` (smallest bounding-box extent `extent`, scene
     // units; infinity: unbounded) is walked; each object is counted once in the statistics.
     bool auto_walks(const void* key, double extent) const;
