@@ -455,8 +455,9 @@ void PointCloud::build_div_sums() {
     }
 }
 
-const double PointCloud::kSmearT[PointCloud::kSmearNodes] = {0.41577455678347908, 2.2942803602790417,
-                                                            6.2899450829374792};
+const double PointCloud::kSmearT[PointCloud::kSmearNodes] = {
+    kSmearLead + (1.0 - kSmearLead) * 0.41577455678347908, kSmearLead + (1.0 - kSmearLead) * 2.2942803602790417,
+    kSmearLead + (1.0 - kSmearLead) * 6.2899450829374792};
 const double PointCloud::kSmearW[PointCloud::kSmearNodes] = {0.71109300992917302, 0.27851773356924085,
                                                             0.010389256501586136};
 

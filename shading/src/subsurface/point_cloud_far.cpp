@@ -385,9 +385,9 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
             }
             const Vec3& sc = ls.s[c];
             if (!kExact) {
-                // Far from x (beyond six shifts and the window's ramp): the images' exponential
-                // spread to second order about the mean image, R(d) + (1/2) tr(H S), S = s s^T
-                // (the exponential's variance |s|^2 along s): one profile lookup, not K.
+                // Far from x (beyond six shifts and the window's ramp): the images' spread to
+                // second order about the mean image, R(d) + (1/2) tr(H S), S = v s s^T (their
+                // variance v |s|^2 along s, v = kSmearVariance): one profile lookup, not K.
                 const Vec3 v = v0 - sc;
                 const double vn = dot(v, nx);
                 const double d2 = std::max(0.0, dot(v, v) - vn * vn + v0n2), s2 = dot(sc, sc);
@@ -397,8 +397,8 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
                     const double us = dot(v, sc) * inv;
                     double f0, f1, f2;
                     rd.eval_channel(c, d, &f0, &f1, &f2);
-                    sum[c] += std::max(0.0, f0 + 0.5 * (f2 * us * us + f1 * inv * (s2 - us * us))) * f *
-                              (weight ? weight->at(c, d) : 1.0);
+                    const double spread = kSmearVariance * (f2 * us * us + f1 * inv * (s2 - us * us));
+                    sum[c] += std::max(0.0, f0 + 0.5 * spread) * f * (weight ? weight->at(c, d) : 1.0);
                     continue;
                 }
             }
@@ -486,9 +486,9 @@ Rgb PointCloud::shifted_sum(const RdProfile& rd, const Vec3& x, const Vec3& nx, 
                         const double dm = across(sc, &u);
                         double r;
                         if (dm * dm > 36.0 * dot(sc, sc)) {
-                            // far beyond the spread: the mean image, the exponential's variance
-                            // |s|^2 along s added to the covariance
-                            r = taylor(c, dm, u, sc) * (weight ? weight->at(c, dm) : 1.0);
+                            // far beyond the spread: the mean image, the images' variance
+                            // kSmearVariance |s|^2 along s added to the covariance
+                            r = taylor(c, dm, u, sc * std::sqrt(kSmearVariance)) * (weight ? weight->at(c, dm) : 1.0);
                         } else {
                             r = 0;
                             for (int j = 0; j < K; ++j) {

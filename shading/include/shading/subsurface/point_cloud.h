@@ -139,10 +139,10 @@ public:
         return leaf_shift_.empty() ? Vec3(0, 0, 0) : leaf_shift_[i].s[channel];
     }
     // The exitance of light that entered at a slant: each point's light leaves about its own
-    // shifted entry, spread along the shift as an exponential distribution of offsets with the
-    // shift as its mean (three Gauss-Laguerre nodes t_k: images at p + t_k shift, weights w_k),
-    // per channel. The window is taken about each image, so `near_irradiance` returns, per
-    // channel, the sum over k of w_k times the (1 - w)-weighted mean E_t of the points whose
+    // shifted entry, spread along the shift with the shift as its mean: offsets a + (1 - a) t,
+    // t exponential with mean 1, a = kSmearLead (three Gauss-Laguerre nodes: images at
+    // p + kSmearT[k] shift, weights w_k; shading/DIPOLE.md 6b), per channel. The window is
+    // taken about each image, so `near_irradiance` returns, per channel, the sum over k of w_k times the (1 - w)-weighted mean E_t of the points whose
     // k-th image lies inside it: the irradiance upstream of x, for the near field
     // (level_near x near_irradiance). Aggregates place each channel's flux at the node's centre
     // plus its flux-weighted mean shift. Otherwise as far_exitance.
@@ -179,7 +179,13 @@ public:
     // than 6 points are left or they lie along a line.
     Rgb shift_divergence_about(const Vec3& x, const Vec3& nx, double h) const;
     static constexpr int kSmearNodes = 3;
-    static const double kSmearT[kSmearNodes];
+    // The part of the mean shift that every image takes (a): the images' offsets along the
+    // shift are a + (1 - a) t, t exponential with mean 1, so their mean is the shift and their
+    // variance (1 - a)^2 |shift|^2 (kSmearVariance). a = 0 (the plain exponential) spread a
+    // slanted shadow's edge too wide both ways (shading/DIPOLE.md 6b, "The images' lead").
+    static constexpr double kSmearLead = 0.25;
+    static constexpr double kSmearVariance = (1.0 - kSmearLead) * (1.0 - kSmearLead);
+    static const double kSmearT[kSmearNodes];  // a + (1 - a) t_k, t_k the Gauss-Laguerre nodes
     static const double kSmearW[kSmearNodes];
 
     // The near/far window (rd_profile.h far_window).
