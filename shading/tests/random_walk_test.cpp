@@ -272,9 +272,10 @@ TEST(RandomWalkSingleScatter, ThroughASlabLitFromBehind) {
     EXPECT_GE(got.r, got0.r);  // the mirrored beams add light
 }
 
-TEST(RandomWalkSingleScatter, SlabWithItsInternalReflectionsOfTheBeam) {
-    // The closed form of SingleScatteringOfASlabWithItsInternalReflections, the eye's path
-    // unmirrored (b = 0: single_scatter follows the view ray to the far face only).
+TEST(RandomWalkSingleScatter, SlabWithItsInternalReflectionsOfTheBeamAndTheView) {
+    // The closed form of SingleScatteringOfASlabWithItsInternalReflections with the eye's path
+    // mirrored at most once (b = 0, 1: single_scatter follows the view ray to the far face and
+    // back from it; b = 2 adds Fresnel's reflectance squared, under 1e-3 of it here).
     const double eta = 1.3, g = 0.9, d = 1.0, ws = 0.5;
     const RandomWalk rw(faint_medium(ws, 1.0 - ws, g, eta), settings());
     const Vec3 l = dir_deg(45, 180), v = dir_deg(30);
@@ -286,21 +287,29 @@ TEST(RandomWalkSingleScatter, SlabWithItsInternalReflectionsOfTheBeam) {
     ASSERT_TRUE(refract_into(-l, Vec3(0, 0, 1), eta, &tl));
     ASSERT_TRUE(refract_into(-v, Vec3(0, 0, 1), eta, &tv));
     const double a0 = -tl.z, b0 = -tv.z;
-    const double fa = fresnel_dielectric(a0, 1.0 / eta);
+    const double fa = fresnel_dielectric(a0, 1.0 / eta), fb = fresnel_dielectric(b0, 1.0 / eta);
     const double E = l.z * (1 - fresnel_dielectric(l.z, eta)) / a0;
-    double inside = 0;
+    double inside = 0, view_mirrored = 0, left_out = 0;
     for (int a = 0; a <= 2; a++) {
-        const double sa = a % 2 == 0 ? 1 : -1;
-        const Vec3 beam(tl.x, tl.y, a % 2 == 0 ? tl.z : -tl.z);
-        const Vec3 out(-tv.x, -tv.y, -tv.z);
-        const double p = henyey_greenstein(dot(beam, out), g);
-        const double c0 = (a % 2 == 0 ? a * d : (a + 1) * d) / a0;
-        const double k = sa / a0 + 1.0 / b0;
-        const double integral = std::fabs(k) < 1e-12 ? d * std::exp(-c0) : std::exp(-c0) * (1 - std::exp(-k * d)) / k;
-        inside += std::pow(fa, a) * ws * p * E * integral / b0;
+        for (int b = 0; b <= 2; b++) {
+            const double sa = a % 2 == 0 ? 1 : -1, sb = b % 2 == 0 ? 1 : -1;
+            const Vec3 beam(tl.x, tl.y, a % 2 == 0 ? tl.z : -tl.z);
+            const Vec3 out(-tv.x, -tv.y, b % 2 == 0 ? -tv.z : tv.z);
+            const double p = henyey_greenstein(dot(beam, out), g);
+            const double c0 = (a % 2 == 0 ? a * d : (a + 1) * d) / a0 + (b % 2 == 0 ? b * d : (b + 1) * d) / b0;
+            const double k = sa / a0 + sb / b0;
+            const double integral = std::fabs(k) < 1e-12 ? d * std::exp(-c0) : std::exp(-c0) * (1 - std::exp(-k * d)) / k;
+            const double term = std::pow(fa, a) * std::pow(fb, b) * ws * p * E * integral / b0;
+            (b <= 1 ? inside : left_out) += term;
+            if (b == 1) view_mirrored += term;
+        }
     }
     const double exact = kPi * (1 - fresnel_dielectric(v.z, eta)) / (eta * eta) * inside;
+    EXPECT_LT(left_out, 1e-3 * inside);
+    EXPECT_GT(view_mirrored, 10 * kSlabSingleTol * inside);  // the check sees the view's mirror
     EXPECT_NEAR(got.r, exact, kSlabSingleTol * exact);
+    std::printf("slab single scattering: %.6f against %.6f (the view path mirrored: %.1f %% of it)\n", got.r, exact,
+                100 * view_mirrored / inside);
 }
 
 // Guided directions (forward scattering) are weighted by the mixture of both lobes: the same

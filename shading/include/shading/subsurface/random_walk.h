@@ -122,12 +122,14 @@ public:
 
     // Single scattering alone, in the object's own shape: pi x radiance leaving x toward to_eye
     // from light scattered once inside, along the refracted view ray up to where it leaves the
-    // object, every light by next_event (its beam entering through whichever face it crosses,
-    // curved or the back of a sheet, its internal reflections included). `points` depths per
-    // channel, one per stratum of exp(-sigma_t (1 + k) t) truncated at the far face, k the slope
-    // of the light's path inside against depth, read from the object by a probe for the light
-    // most nearly along the normal: exact on a flat face and through parallel faces lit from
-    // behind, a smooth remainder elsewhere. The direct beams without roulette (next_event's
+    // object and, where the faces mirror (eta != 1, beam_reflections > 0), once more along its
+    // reflection there (shading/DIPOLE.md 6c), every light by next_event (its beam entering
+    // through whichever face it crosses, curved or the back of a sheet, its internal
+    // reflections included). `points` depths per channel, one per stratum of
+    // exp(-sigma_t (1 + k) t) truncated at the far face, k the slope of the light's path inside
+    // against depth, read from the object by a probe for the light most nearly along the
+    // normal: exact on a flat face and through parallel faces lit from behind, a smooth
+    // remainder elsewhere; where the faces mirror, half of a finite part's depths uniform. The direct beams without roulette (next_event's
     // floor 0: on a flat face the sum is exact); a mirrored beam predicted weaker than 1e-4
     // of its strength by roulette from `seed` (the same seed, the same value). For
     // `single_scatter_samples` (the profile's finish), instead of the half-space's
