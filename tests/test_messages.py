@@ -70,3 +70,29 @@ def test_a_note_names_the_medium_where_it_was_written_and_the_channel():
     assert "dipole_media.inc line " in notes[0].split(":")[0], notes
     assert "Parse Warning: dipole medium 'Coke': g = 0.965 (r) is outside the exact profile's tables [0, 0.95]" in notes[0], notes
     assert "g = 0.972 (g) is outside" in notes[1], notes
+
+
+GLOSSY_SCENE = """#version 3.7;
+global_settings {{ assumed_gamma 1.0 }}
+camera {{ location -3*z look_at 0 }}
+light_source {{ <-3, 4, -5> rgb 1 area_light x, y, 4, 4 {adaptive} }}
+sphere {{ 0, 1 finish {{ brdf_model {{ "microfacet d=beckmann m=0.2" samples 4 }} }} }}
+plane {{ y, -1 pigment {{ rgb 0.5 }} }}
+"""
+
+
+@pytest.mark.parametrize("adaptive, advice", [
+    ("", "Lower 'samples', make area lights 'adaptive', or expect"),
+    ("adaptive 1", "Lower 'samples' or the area light's 'adaptive' level, or expect"),
+])
+def test_the_glossy_cost_warning_names_no_line_and_fits_the_light(adaptive, advice):
+    # Said once parsing is done, of the scene as a whole: the line parsing ended on (the
+    # plane's, here) is not its cause, so none is named; a light that is already adaptive is
+    # not told to become so.
+    r = runner.render(GLOSSY_SCENE.format(adaptive=adaptive), "fork", width=8, height=8)
+    text = " ".join(r.stderr.split())
+    assert ("Parse Warning: Glossy reflection: a finish with 'samples 4' traces 4 glossy rays per hit" in text
+            and "up to 64 shadow rays per hit" in text), text
+    assert not [w for w in r.warnings if "Glossy reflection" in w], r.warnings
+    assert advice in text, text
+    assert ("4 x 4, adaptive)" in text) == bool(adaptive), text
