@@ -102,8 +102,10 @@ sphere {{ 0, 1 pigment {{ rgb 1 }} finish {{ brdf_model {{ "microfacet d=beckman
 ])
 def test_samples_with_area_lights_warn_about_the_cost(fork, area, samples, warned):
     res = runner.render(AREA_SCENE.format(area=area, samples=samples), fork, width=16, height=16)
-    text = " ".join(res.warnings)
-    assert ("samples" in text and "area light" in text) == warned, res.warnings
+    # said of the scene as a whole, with no line (tests/test_messages.py): on stderr, not in
+    # the located warnings
+    text = " ".join(res.stderr.split())
+    assert ("Parse Warning: Glossy reflection:" in text) == warned, text
     if warned:
         assert "8 glossy rays" in text and "20 shadow rays" in text and "160" in text, text
 
