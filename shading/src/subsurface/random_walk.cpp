@@ -464,14 +464,19 @@ Rgb RandomWalk::single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, c
         if (up ? !refract_into(-l, n, eta_, &t) : !(cos_l < 0 && refract_into(-l, -n, eta_, &t))) continue;
         if ((up && !above) || (up == above && std::fabs(cos_l) > along)) along = std::fabs(cos_l), above = up, beam_in = t;
     }
-    if (along > 0) {
-        const double reach = 1.0 / std::max(std::min({sigma_t_.r, sigma_t_.g, sigma_t_.b}), 1e-300);
-        const double tp = std::min(reach, 0.5 * tb);
-        WalkScene::Hit at_x{}, at_p{};
-        const bool from_x = above || scene.leave(x + d * (1e-9 * tp), -beam_in, &at_x);
-        if (tp > 0 && std::isfinite(tp) && from_x && scene.leave(x + d * tp, -beam_in, &at_p))
-            k = std::clamp((at_p.t - (above ? 0.0 : at_x.t)) / tp, -1e3, 1e3);
-    }
+    const double sigma_t_min = std::min({sigma_t_.r, sigma_t_.g, sigma_t_.b});
+    // The slope along a straight part of the view path from o (lit_face: o is where the chosen
+    // light's beam enters, its path back there 0): the length of that path at o and at the
+    // probe depth, over the probe depth.
+    auto slope = [&](const Vec3& o, const Vec3& dir, double length, bool lit_face) {
+        const double tp = std::min(1.0 / std::max(sigma_t_min, 1e-300), 0.5 * length);
+        WalkScene::Hit at_o{}, at_p{};
+        if (!(tp > 0 && std::isfinite(tp)) || !(lit_face || scene.leave(o + dir * (1e-9 * tp), -beam_in, &at_o)) ||
+            !scene.leave(o + dir * tp, -beam_in, &at_p))
+            return 0.0;
+        return std::clamp((at_p.t - (lit_face ? 0.0 : at_o.t)) / tp, -1e3, 1e3);
+    };
+    if (along > 0) k = slope(x, d, tb, above);
     std::uint64_t state = seed;
     Rgb sum(0.0);
     Vec3 guide;
@@ -529,21 +534,12 @@ Rgb RandomWalk::single_scatter(WalkScene& scene, const Vec3& x, const Vec3& n, c
     if (mirrors && std::isfinite(tb) && along > 0) {
         const double cos_f = dot(d, h.n);
         const double f = cos_f > 0 ? fresnel_dielectric(cos_f, 1.0 / eta_) : 0.0;
-        const double sigma_t_min = std::min({sigma_t_.r, sigma_t_.g, sigma_t_.b});
         if (f * std::exp(-sigma_t_min * tb) > kSingleMirrorFloor) {
             const Vec3 d2 = normalize(d - h.n * (2.0 * cos_f));
             WalkScene::Hit h2{};
             const double tb2 = scene.leave(h.p, d2, &h2) ? h2.t : kInf;
-            // the slope of the light's path against depth along the mirrored part, read as for
-            // the first: the light's refracted path back to the surface at its start and at a
-            // probe depth
-            double k2 = 0;
-            const double reach = 1.0 / std::max(sigma_t_min, 1e-300);
-            const double tp = std::min(reach, 0.5 * tb2);
-            WalkScene::Hit at_s{}, at_p{};
-            if (tp > 0 && std::isfinite(tp) && scene.leave(h.p + d2 * (1e-9 * tp), -beam_in, &at_s) &&
-                scene.leave(h.p + d2 * tp, -beam_in, &at_p))
-                k2 = std::clamp((at_p.t - at_s.t) / tp, -1e3, 1e3);
+            // the slope along the mirrored part, read as for the first (its start on the far face)
+            const double k2 = slope(h.p, d2, tb2, false);
             segment(h.p, d2, tb2, tb, start * f, k2);
         }
     }
