@@ -213,6 +213,21 @@ public:
         B_ = s.band_count();
         for (double e : s.exit_bands) band_edge2_.push_back(e * e);
         for (std::size_t j = 0; j < ne_mu_.size(); ++j) ne_tan_.push_back(ne_sin_[j] * ne_inv_mu_[j]);
+        // A slab's faces mirror the light inside (Fresnel at 1 / eta): per node and eta the
+        // reflectance R, and the sum over round trips between the faces 1 / (1 - R^2 e^(-2 d / mu)).
+        // Past 40 mfp a round trip leaves e^(-40) of the light: the plain estimate.
+        mirror_ = s.thickness < 40.0;
+        if (mirror_) {
+            for (std::size_t j = 0; j < ne_mu_.size(); ++j) {
+                const double ed = std::exp(-s.thickness * ne_inv_mu_[j]);
+                ne_ed_.push_back(ed);
+                for (std::size_t e = 0; e < E_; ++e) {
+                    const double r = fresnel_dielectric(ne_mu_[j], inv_eta_[e]);
+                    ne_sum_.push_back(1.0 / (1.0 - r * r * ed * ed));
+                    ne_r_.push_back(r);
+                }
+            }
+        }
         A_ = s.oblique_azimuths;
         for (int a = 0; a < A_; ++a) {
             az_cos_.push_back(std::cos(kPi * a / (A_ - 1)));
@@ -392,6 +407,10 @@ private:
         const int J = int(ne_mu_.size());
         const double f = (s_.short_photons > 0 && n <= s_.short_orders) ? low_factor_ : 1.0;
         const double g = s_.g;
+        if (mirror_) {
+            next_event_mirrored(sc, n, z, ux, uz, w, att, f);
+            return;
+        }
         for (int face = 0; face < 2; ++face) {
             const double dist = face == 0 ? z : s_.thickness - z;
             if (!(dist < 40.0)) continue;  // exp(-40): nothing arrives
@@ -409,6 +428,38 @@ private:
             for (int j = 0; j < J; ++j)
                 for (std::size_t e = 0; e < E_; ++e) b[j * E_ + e] += w[e] * q[j];
         }
+    }
+
+    // next_event in a slab under 40 mfp thick: besides the straight path, the event's light
+    // reaches each face by way of the other face's mirror (scattered away from the face, turned
+    // back by Fresnel reflection at the far face), and both go on between the faces:
+    // L_top(mu) = [p_up e^(-z / mu) + R p_down e^(-(2 d - z) / mu)] / (1 - R^2 e^(-2 d / mu)) / mu, and
+    // the bottom's alike. Without the mirrored path a thin forward-scattering sheet's lit side
+    // lacked the forward lobe its far face turns back toward the normal: Skin1 at g 0.9, ior 1.3,
+    // 0.25 mfp' rendered 3.7 % dark at normal view and right from 30 degrees (DIPOLE.md 10.3).
+    void next_event_mirrored(Scratch& sc, long n, double z, double ux, double uz, const double* w, double* att,
+                             double f) const {
+        const int J = int(ne_mu_.size());
+        const double g = s_.g, d = s_.thickness;
+        double up[32], down[32];  // the straight paths to the top and the bottom face
+        for (int j = 0; j < J; ++j) {
+            const double cu = ux * ne_sin_[j] - uz * ne_mu_[j], cd = ux * ne_sin_[j] + uz * ne_mu_[j];
+            const double du = 1.0 + g * g - 2.0 * g * cu, dd = 1.0 + g * g - 2.0 * g * cd;
+            const double at = std::exp(-z * ne_inv_mu_[j]), ab = std::exp(-(d - z) * ne_inv_mu_[j]);
+            att[j] = at;
+            const double scale = f * hg_norm_ * ne_inv_mu_[j];
+            up[j] = scale / (du * std::sqrt(du)) * at;
+            down[j] = scale / (dd * std::sqrt(dd)) * ab;
+        }
+        double* top = sc.ne[0].data() + std::size_t(n) * J * E_;
+        double* bottom = sc.ne[1].data() + std::size_t(n) * J * E_;
+        for (int j = 0; j < J; ++j)
+            for (std::size_t e = 0; e < E_; ++e) {
+                const std::size_t i = std::size_t(j) * E_ + e;
+                const double r = ne_r_[i] * ne_ed_[std::size_t(j)], sum = ne_sum_[i];
+                top[i] += w[e] * (up[j] + r * down[j]) * sum;
+                bottom[i] += w[e] * (down[j] + r * up[j]) * sum;
+            }
     }
 
     // Oblique incidence: next_event's estimate for the top face toward w_ja = (sin_j cos phi_a,
@@ -538,6 +589,10 @@ private:
     std::vector<double> log_albedo_, log_scale_;
     double inv_eta_[kMaxEtas] = {};
     std::vector<double> ne_mu_, ne_inv_mu_, ne_sin_, ne_tan_;
+    // A slab under 40 mfp (next_event_mirrored): e^(-d / mu_j); per node and eta [j * E + e] the
+    // faces' reflectance and the sum over round trips.
+    bool mirror_ = false;
+    std::vector<double> ne_ed_, ne_r_, ne_sum_;
     int B_ = 0;                        // exit-distance bands (0: off)
     int A_ = 0;                        // oblique incidence's azimuths (0: off)
     std::vector<double> az_cos_, az_sin_;

@@ -34,7 +34,7 @@ namespace shading {
 
 // Bumped whenever the generator's output for the same settings changes (Monte Carlo, the
 // processing of its tallies); part of a table file's identity (ProfileTables::stale).
-constexpr std::uint32_t kProfileGeneratorVersion = 6;
+constexpr std::uint32_t kProfileGeneratorVersion = 7;
 // The .ssp layout's version (3: the checksum at bytes 24..31 covers the whole file, header
 // included; 4: each record holds the oblique beams' exit shifts; 5: and the exit distribution per
 // distance band; 6: and per oblique incidence and azimuth; DIPOLE.md 10.4). Files of another
