@@ -50,8 +50,9 @@ constexpr double kMaxLines = 5e7;
 // Line indices of the finest level stay far inside int64 and int.
 constexpr std::int64_t kMaxIndex = std::int64_t(1) << 28;
 // A crossing without a sample of its own (sample_of: -1) whose surface a coarser line's sample
-// holds: a view level's sub-line crossing next to its parent's sample (or to a crossing of the
-// parent held so itself). Later levels must not take it for surface no line sampled.
+// holds: a view level's sub-line crossing next to its parent's sample (or, on a face its family
+// meets head-on, next to a crossing of the parent held so itself). Later levels must not take
+// it for surface no line sampled.
 constexpr int kHeldAbove = -2;
 
 // reserve() for a vector that keeps growing: at least double, so appends stay amortised O(1)

@@ -436,7 +436,7 @@ private:
     // L_top(mu) = [p_up e^(-z / mu) + R p_down e^(-(2 d - z) / mu)] / (1 - R^2 e^(-2 d / mu)) / mu, and
     // the bottom's alike. Without the mirrored path a thin forward-scattering sheet's lit side
     // lacked the forward lobe its far face turns back toward the normal: Skin1 at g 0.9, ior 1.3,
-    // 0.25 mfp' rendered 3.7 % dark at normal view and right from 30 degrees (DIPOLE.md 10.3).
+    // 0.25 mfp' rendered 3.7 % dark at normal view and right from 30 degrees (DIPOLE.md 10.2).
     void next_event_mirrored(Scratch& sc, long n, double z, double ux, double uz, const double* w, double* att,
                              double f) const {
         const int J = int(ne_mu_.size());
