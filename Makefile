@@ -178,7 +178,7 @@ SS_PROFILES := $(BRDF_DATA)/subsurface_profiles.ssp
 # The exact slab tables of thin geometry (DIPOLE.md 6a): g 0 (every Jensen preset), the half-space
 # file's etas, 31 thicknesses 2^(k/3), 1/16 .. 64 mean free paths (ln-d interpolation within
 # ~0.5 % in the totals), half the default photons (totals still within 2.4 % of the harness Monte
-# Carlo); about 2 minutes on 2 cores.
+# Carlo); about 3.3 minutes on 2 cores.
 SS_SLABS := $(BRDF_DATA)/subsurface_slabs.ssp
 SS_SLAB_D := 0.0625,0.0787451,0.0992126,0.125,0.15749,0.198425,0.25,0.31498,0.39685,0.5,0.629961,0.793701,1
 SS_SLAB_D := $(SS_SLAB_D),1.25992,1.5874,2,2.51984,3.1748,4,5.03968,6.3496,8,10.0794,12.6992,16,20.1587,25.3984
@@ -187,7 +187,8 @@ SS_SLAB_ARGS := --g 0 --eta 1,1.1,1.2,1.3,1.33,1.4,1.5,1.6,1.8,2 --photons 40000
 # The slab tables of forward-scattering media (DIPOLE.md 6a): g 0 to 0.95, the iors most scenes
 # use, thicknesses 2^(k/2) mean free paths (not transport ones: 1/16 .. 64 mfp is 1/160 .. 6.4
 # mfp' at g 0.9; thicker channels take a smaller g), 24 exit-angle samples for the narrow
-# forward lobe seen through a sheet, half the isotropic file's photons; 7.1 minutes on 2 cores, 18.8 MB.
+# forward lobe seen through a sheet, half the isotropic file's photons (up to 8 times in thick slabs,
+# DIPOLE.md 10.3); 7.8 minutes on 2 cores, 18.8 MB.
 SS_FORWARD := $(BRDF_DATA)/subsurface_slabs_forward.ssp
 SS_FORWARD_D := 0.0625,0.0883883,0.125,0.176777,0.25,0.353553,0.5,0.707107,1,1.41421,2,2.82843,4,5.65685,8
 SS_FORWARD_D := $(SS_FORWARD_D),11.3137,16,22.6274,32,45.2548,64

@@ -80,6 +80,23 @@ TEST(ProfileTables, FileRoundTripIsExactAndStaleDetection) {
     EXPECT_TRUE(back->stale(other));
 }
 
+// The normal-incidence run's full paths grow with the slab's transport thickness d (1 - g):
+// photons below 1.6 of them, (d' / 1.6)^2 times photons above, at most 8 times (a thick slab's
+// transmitted exit distribution is photon noise otherwise: DIPOLE.md 10.3).
+TEST(ProfileTables, ThickSlabsTakeMorePaths) {
+    ProfileBuildSettings s;
+    s.photons = 20000;
+    EXPECT_EQ(s.normal_photons(kInfD, 0.9), 20000u);  // the half-space: as set
+    EXPECT_EQ(s.normal_photons(1.0, 0.0), 20000u);
+    EXPECT_EQ(s.normal_photons(16.0, 0.9), 20000u);  // d' 1.6: the first that grows
+    EXPECT_EQ(s.normal_photons(32.0, 0.9), 80000u);  // d' 3.2: 4 times
+    EXPECT_EQ(s.normal_photons(50.0, 0.9), 160000u);  // d' 5: 9.8, so 8, the most
+    EXPECT_EQ(s.normal_photons(64.0, 0.9), 160000u);
+    EXPECT_EQ(s.normal_photons(64.0, 0.0), 160000u);
+    EXPECT_EQ(s.normal_photons(2.0, 0.0), 31250u);   // (2 / 1.6)^2 = 1.5625
+    EXPECT_EQ(s.normal_photons(16.0, 0.95), 20000u);  // d' 0.8
+}
+
 // Thick slabs at low albedo transmit almost nothing: a face with a handful of noisy exits must
 // still give a file its own loader accepts (it once stored an angle sample of 1.4e6 and a tail
 // amplitude beyond the format's bound) and a finite, non-negative profile.

@@ -446,6 +446,13 @@ std::string ProfileBuildSettings::validate() const {
     return "";
 }
 
+std::uint64_t ProfileBuildSettings::normal_photons(double thickness, double g) const {
+    constexpr double kFrom = 1.6, kMost = 8.0;  // transport mfp; the largest factor
+    if (!(thickness < kInf)) return photons;
+    const double factor = std::clamp(sqr(thickness * (1.0 - g) / kFrom), 1.0, kMost);
+    return std::uint64_t(std::llround(double(photons) * factor));
+}
+
 ProfileBuildSettings ProfileBuildSettings::recorded() const {
     ProfileBuildSettings r = *this;
     if (std::any_of(thickness.begin(), thickness.end(), [](double d) { return d != kInf; })) {
@@ -497,7 +504,7 @@ std::shared_ptr<ProfileTables> build_profile_tables(const ProfileBuildSettings& 
             mc.g = g;
             mc.eta = s.eta;
             mc.thickness = s.thickness[id];
-            mc.photons = s.photons;
+            mc.photons = s.normal_photons(s.thickness[id], g);
             mc.short_photons = s.short_photons;
             mc.short_orders = int(std::ceil(s.short_orders / (1.0 - g)));
             mc.roulette_order = s.roulette_order / (1.0 - g);

@@ -57,7 +57,8 @@ std::string ProfileTables::describe() const {
       << " bins)"
       << "\n  oblique exits: " << (s.oblique_azimuths > 0 ? std::to_string(s.oblique_azimuths) + " azimuths, orders to " + std::to_string(s.oblique_orders) + "/(1-g) their own" : std::string("none"))
       << "\n  exit-distance bands: " << (s.exit_bands.empty() ? std::string("none") : "edges " + list(s.exit_bands) + " transport mfp")
-      << "\n  photons per node: " << s.photons << " + " << s.short_photons << " short (" << num(s.short_orders)
+      << "\n  photons per node: " << s.photons << (faces == 2 ? " (x (d (1-g) / 1.6)^2 within [1, 8] at normal incidence)" : "")
+      << " + " << s.short_photons << " short (" << num(s.short_orders)
       << "/(1-g) events), roulette from " << num(s.roulette_order) << "/(1-g) events, oblique " << num(s.oblique_fraction)
       << ", seed " << s.seed << "\n  records: " << records.size() << ", " << record_floats(s) << " floats each\n";
     return o.str();
