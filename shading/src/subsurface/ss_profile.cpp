@@ -4,6 +4,7 @@
 #include "shading/subsurface/ss_profile.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -125,11 +126,17 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     // -8.8 % against the Monte Carlo at that thickness, the nodes on both sides within 2.2 %). So
     // the transmitted total is interpolated as ln T + kappa d (kappa each record's own, at its
     // albedo and g), which is flat in a thick slab and, where kappa d is small, ln T itself.
+    // The exit distribution (the inside radiance's samples) is cubic Lagrange in ln d over four
+    // nodes: the light through a forward-scattering sheet a few mfp thick peaks at the normal,
+    // and that peak falls faster than exponentially with thickness (the low orders leave it),
+    // so between nodes sqrt(2) apart read linearly it was high: Skin1's red at g 0.9 through
+    // 9.6 mfp, pi L / M at the normal 2.007 against 1.910 from a node built there (1.938 cubic),
+    // and the sheet seen straight through rendered +5.2 % (DIPOLE.md 10.3).
     auto wg = axis_weights(s.g, g), we = axis_weights(s.eta, eta);
     std::vector<double> lnd;
     for (double d : s.thickness)
         if (d != kInf) lnd.push_back(std::log(d));
-    auto thickness_weights = [&](double alpha, double gn) -> std::vector<std::pair<int, double>> {
+    auto thickness_weights = [&](double alpha, double gn, bool cubic) -> std::vector<std::pair<int, double>> {
         if (thickness == kInf) return {{int(s.thickness.size()) - 1, 1.0}};
         const double x = std::log(thickness / (1.0 - alpha * gn));
         if (!(x >= lnd.front() - 1e-9 && x <= lnd.back() + 1e-9))
@@ -140,7 +147,8 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
         int i = int(std::upper_bound(lnd.begin(), lnd.end(), x) - lnd.begin()) - 1;
         i = std::clamp(i, 0, int(lnd.size()) - 2);
         const double f = std::clamp((x - lnd[i]) / (lnd[i + 1] - lnd[i]), 0.0, 1.0);
-        return {{i, 1 - f}, {i + 1, f}};
+        if (!cubic) return {{i, 1 - f}, {i + 1, f}};
+        return axis_weights(lnd, x);
     };
 
     rho_.resize(nb);
@@ -172,12 +180,20 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
         const double gn = s.g[ig];
         // The node's albedo at the same reduced albedo: alpha' = alpha (1 - g) / (1 - alpha g).
         const double alpha = alpha_prime / (1.0 - gn + alpha_prime * gn);
-        const auto wd = thickness_weights(alpha, gn);
+        // One pass over the nodes of either stencil, each with its two weights (id, linear, cubic).
+        std::vector<std::array<double, 3>> wd;
+        for (auto [id, wl] : thickness_weights(alpha, gn, false)) wd.push_back({double(id), wl, 0.0});
+        for (auto [id, wc] : thickness_weights(alpha, gn, true)) {
+            auto at = std::find_if(wd.begin(), wd.end(), [&](const auto& n) { return int(n[0]) == id; });
+            if (at == wd.end()) wd.push_back({double(id), 0.0, wc});
+            else (*at)[2] = wc;
+        }
         const double d_mfp = thickness / (1.0 - alpha * gn);  // the tables' mean free paths at this g
         for (std::size_t ke = 0; ke < we.size(); ++ke)
-            for (auto [id, w3] : wd) {
+            for (const auto& node : wd) {
+                const int id = int(node[0]);
                 const auto [ie, w2] = we[ke];
-                const double w = w1 * w2 * w3;
+                const double w = w1 * w2 * node[1], w_angle = w1 * w2 * node[2];
                 const double u = alpha < 1.0 ? -std::log1p(-alpha) : 1e300;
                 // Multiple scattering goes as alpha^2 for small alpha: the profile values and the
                 // total are interpolated as ln(v / alpha^2) (smooth in u down to alpha = 0, and
@@ -188,7 +204,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     const FaceRecord& r = t.record(ig, ie, id, face, k);
                     if (r.angle.size() != std::size_t(s.angle_nodes))
                         throw std::logic_error("exact profile: a record's angle samples differ from the tables' count");
-                    const double ww = w * wk;
+                    const double ww = w * wk, ww_angle = w_angle * wk;
                     const double ln_scale = ln_a2 - 2.0 * std::log(t.albedo(k));
                     // (the same shift for the radial profile's nodes would leave its shape as it
                     // is: it is scaled to the total below)
@@ -203,7 +219,8 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     for (int b = 0; b < nb; ++b) lnv_[b] += ww * (std::log(std::max(r.profile[b], kTiny)) + ln_scale);
                     for (int j = 0; j < nci; ++j) incidence_[j] += ww * r.incidence[j];
                     for (int j = 0; j < nci && j < int(r.shift.size()); ++j) shift_[j] += ww * r.shift[j];
-                    for (int j = 0; j <= 128; ++j) angle_[j] += ww * angle_basis.value(r.angle, std::size_t(j));
+                    if (ww_angle != 0)
+                        for (int j = 0; j <= 128; ++j) angle_[j] += ww_angle * angle_basis.value(r.angle, std::size_t(j));
                     if (B > 0 && (r.band_rho.size() != std::size_t(B) || r.band_ratio.size() != band_ratio_.size()))
                         throw std::logic_error("exact profile: a record's distance bands differ from the tables' count");
                     if (A > 0 && r.oblique.size() != std::size_t(nci - 1) * A * s.angle_nodes)
@@ -216,7 +233,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
                     for (std::size_t i = 0; i < band_ratio_.size(); ++i) band_ratio_[i] += ww * r.band_ratio[i];
                     // 2 integral_0^1 Ft(mu_o) I(mu'(mu_o)) / eta^2 mu_o dmu_o of the stored samples
                     // pi I / M: the exit distribution's integral (1 up to the interpolant's error).
-                    own_flux += ww * exit_sums[ke](r.angle) / (s.eta[ie] * s.eta[ie]);
+                    if (ww_angle != 0) own_flux += ww_angle * exit_sums[ke](r.angle) / (s.eta[ie] * s.eta[ie]);
                 }
             }
     }
