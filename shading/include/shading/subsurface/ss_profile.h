@@ -86,9 +86,9 @@ struct ProfileBuildSettings {
     std::string validate() const;
     // The full paths of the normal-incidence run of a slab `thickness` mfp thick at anisotropy
     // g: `photons` times (d' / 1.6)^2 within [1, 8], d' = thickness (1 - g) the slab's transport
-    // thickness at albedo 1. Light through a thick slab is all of high order, and few paths
-    // cross it: the transmitted face's exit distribution at 64 mfp and g 0.9 (6.4 d') varied by
-    // 3.5 % from seed to seed at 20 000 paths (1.9 % at 3.2 d', 0.6 % at 1.6 d'), and the
+    // thickness at albedo 1. Few paths cross a thick slab, after hundreds of scatterings: the
+    // transmitted face's exit distribution at 64 mfp and g 0.9 (6.4 d') varied by 3.5 % from
+    // seed to seed at 20 000 paths (1.9 % at 3.2 d', 0.7 % at 1.6 d'), and the
     // shipped table's 45-degree exit read 10 % high (DIPOLE.md 10.3). Not the oblique runs (their
     // totals only) nor the short paths (the low orders, near the lit face).
     std::uint64_t normal_photons(double thickness, double g) const;
