@@ -729,8 +729,8 @@ TEST(ExactSlabs, TransmissionBetweenThicknessNodesFallsAsTheTransportDecays) {
     EXPECT_NEAR(r_mid, std::sqrt(r1.total() * r2.total()), 1e-12 * r_mid);
 }
 
-// The exit distribution between thickness nodes follows their curvature in ln d (cubic Lagrange
-// over four nodes; these tables have three, so quadratic): records whose inside-radiance samples
+// The transmitted exit distribution between thickness nodes follows their curvature in ln d
+// (cubic Lagrange over four nodes; these tables have three, so quadratic): records whose inside-radiance samples
 // are quadratic in ln d read, between the nodes, as tables whose every node holds the samples at
 // that thickness. The linear reading (before) is off by percents there: a forward lobe seen
 // through a sheet falls faster than exponentially with its thickness (Skin1's red at g 0.9

@@ -126,12 +126,14 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
     // -8.8 % against the Monte Carlo at that thickness, the nodes on both sides within 2.2 %). So
     // the transmitted total is interpolated as ln T + kappa d (kappa each record's own, at its
     // albedo and g), which is flat in a thick slab and, where kappa d is small, ln T itself.
-    // The exit distribution (the inside radiance's samples) is cubic Lagrange in ln d over four
-    // nodes: the light through a forward-scattering sheet a few mfp thick peaks at the normal,
-    // and that peak falls faster than exponentially with thickness (the low orders leave it),
-    // so between nodes sqrt(2) apart read linearly it was high: Skin1's red at g 0.9 through
+    // The transmitted exit distribution (the inside radiance's samples) is cubic Lagrange in ln d
+    // over four nodes: the light through a forward-scattering sheet a few mfp thick peaks at the
+    // normal, and that peak falls faster than exponentially with thickness (the low orders leave
+    // it), so between nodes sqrt(2) apart read linearly it was high: Skin1's red at g 0.9 through
     // 9.6 mfp, pi L / M at the normal 2.007 against 1.910 from a node built there (1.938 cubic),
-    // and the sheet seen straight through rendered +5.2 % (DIPOLE.md 10.3).
+    // and the sheet seen straight through rendered +5.2 % (DIPOLE.md 10.3). The reflected face's
+    // stays linear: read cubic, a 0.25 mfp' sheet's lit side moved by -1 to -1.7 %, away from the
+    // reference (400 000 paths, noise 1.1 %) and within the nodes' noise of a node built there.
     auto wg = axis_weights(s.g, g), we = axis_weights(s.eta, eta);
     std::vector<double> lnd;
     for (double d : s.thickness)
@@ -183,7 +185,7 @@ ChannelProfile::ChannelProfile(const ProfileTables& t, double alpha_prime, doubl
         // One pass over the nodes of either stencil, each with its two weights (id, linear, cubic).
         std::vector<std::array<double, 3>> wd;
         for (auto [id, wl] : thickness_weights(alpha, gn, false)) wd.push_back({double(id), wl, 0.0});
-        for (auto [id, wc] : thickness_weights(alpha, gn, true)) {
+        for (auto [id, wc] : thickness_weights(alpha, gn, face == 1)) {
             auto at = std::find_if(wd.begin(), wd.end(), [&](const auto& n) { return int(n[0]) == id; });
             if (at == wd.end()) wd.push_back({double(id), 0.0, wc});
             else (*at)[2] = wc;
